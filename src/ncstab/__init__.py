@@ -1,0 +1,3 @@
+"""ncstab: stability analysis of non-conservative discrete systems."""
+
+__version__ = "0.1.0"

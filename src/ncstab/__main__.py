@@ -1,0 +1,5 @@
+import sys
+
+from ncstab.cli import main
+
+sys.exit(main())

@@ -1,0 +1,111 @@
+"""The four contact laws of the seed, in the dimensionless variables of Eq. (37).
+
+Every law shares the normal law N = delta with delta the normal overlap; they
+differ in the tangential part.  Classes (hyperelastic, weakly or strongly
+hypoelastic) are *not* declared here: :func:`ncstab.symbolic.classify` computes
+them from these expressions.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import sympy as sp
+
+from ncstab.laws.definition import (
+    ALPHA,
+    ALPHA0,
+    DELTA,
+    GAMMA,
+    L,
+    LawDefinition,
+)
+
+__all__ = [
+    "CUNDALL_STRACK",
+    "WEAKLY_HYPOELASTIC",
+    "MCNAMARA",
+    "TURCO",
+    "no_tension",
+]
+
+#: Cundall & Strack (1979), seed Eq. (13)-(15): N = -(l - 1), dT = gamma l dalpha.
+#: T is an internal variable: it travels with the state along a path.
+CUNDALL_STRACK = LawDefinition(
+    name="cundall_strack",
+    title="Cundall & Strack (1979), DEM rate law",
+    equations="Eq. (13)-(15)",
+    normal_overlap=1 - L,
+    normal_force=DELTA,
+    tangential_rate=(sp.Integer(0), GAMMA * L),
+    internal_variables=("T",),
+)
+
+#: Rate law with l replaced by l0 = 2R in the tangential rate, seed Eq. (26)-(27):
+#: N = -(l - 1), T = gamma (alpha - alpha0).
+WEAKLY_HYPOELASTIC = LawDefinition(
+    name="weakly_hypoelastic",
+    title="Cauchy-elastic law with constant lever arm, seed Eq. (26)-(27)",
+    equations="Eq. (26)-(27)",
+    normal_overlap=1 - L,
+    normal_force=DELTA,
+    tangential_force=GAMMA * (ALPHA - ALPHA0),
+)
+
+#: McNamara, Garcia-Rojo & Herrmann (2008), seed Eq. (18)-(20):
+#: N = -(l - 1), l T = gamma (alpha - alpha0); energy Eq. (19).
+MCNAMARA = LawDefinition(
+    name="mcnamara",
+    title="McNamara et al. (2008), shear rotational springs",
+    equations="Eq. (18)-(22)",
+    normal_overlap=1 - L,
+    normal_force=DELTA,
+    tangential_force=GAMMA * (ALPHA - ALPHA0) / L,
+    energy=DELTA**2 / 2 + GAMMA * (ALPHA - ALPHA0) ** 2 / 2,
+)
+
+#: Turco et al. (2019), seed Eq. (28)-(29): shear translational springs,
+#: N = -(l - cos(alpha - alpha0)),
+#: l T = sin(alpha - alpha0) (l - cos(alpha - alpha0)) + gamma sin cos(alpha - alpha0).
+TURCO = LawDefinition(
+    name="turco",
+    title="Turco et al. (2019), shear translational springs",
+    equations="Eq. (28)-(29), (54)-(55)",
+    normal_overlap=sp.cos(ALPHA - ALPHA0) - L,
+    normal_force=DELTA,
+    tangential_force=(
+        -sp.sin(ALPHA - ALPHA0) * DELTA
+        + GAMMA * sp.sin(ALPHA - ALPHA0) * sp.cos(ALPHA - ALPHA0)
+    )
+    / L,
+    energy=DELTA**2 / 2 + GAMMA * sp.sin(ALPHA - ALPHA0) ** 2 / 2,
+)
+
+
+def no_tension(law: LawDefinition) -> LawDefinition:
+    """Apply the no-tension modifier of seed Eq. (59) to any law.
+
+    The normal overlap delta is replaced by its Macaulay bracket
+    <delta> = (delta + |delta|)/2 wherever it appears -- in N, in T (Turco's T
+    carries the normal spring) and in the energy -- so a contact that opens
+    carries no normal force.
+
+    Parameters
+    ----------
+    law
+        The law to modify; a law already modified is returned unchanged.
+
+    Returns
+    -------
+    LawDefinition
+        A new definition named ``"<name>+no_tension"``.
+    """
+    if law.no_tension:
+        return law
+    return dataclasses.replace(
+        law,
+        name=f"{law.name}+no_tension",
+        title=f"{law.title}, no tension (Eq. 59)",
+        equations=f"{law.equations}, (59)",
+        no_tension=True,
+    )

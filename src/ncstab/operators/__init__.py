@@ -1,0 +1,39 @@
+"""Tangent operators and stability indicators (layer ``operators/``)."""
+
+from ncstab.operators.indicators import (
+    det_K,
+    flutter_discriminant,
+    force_controlled_mask,
+    hill_eigenvalue,
+    mixed_control_determinant,
+    mixed_control_stiffness,
+    normalized_second_order_work,
+    second_order_work,
+    skew_part,
+    symmetric_part,
+)
+from ncstab.operators.tangent import (
+    conjugate_tangent,
+    contact_forces,
+    generalized_forces,
+    tangent_operator,
+    tangent_operator_at_forces,
+)
+
+__all__ = [
+    "conjugate_tangent",
+    "contact_forces",
+    "det_K",
+    "flutter_discriminant",
+    "force_controlled_mask",
+    "generalized_forces",
+    "hill_eigenvalue",
+    "mixed_control_determinant",
+    "mixed_control_stiffness",
+    "normalized_second_order_work",
+    "second_order_work",
+    "skew_part",
+    "symmetric_part",
+    "tangent_operator",
+    "tangent_operator_at_forces",
+]

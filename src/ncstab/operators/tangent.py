@@ -1,0 +1,154 @@
+"""The tangent operator K (dF = K du) of a system with a contact law.
+
+For a system whose contacts have variables q_c(u) = (l_c, alpha_c) and forces
+(N_c, T_c), the virtual-work equilibrium F = sum_c w_c J_c^T Q_c with
+Q_c = (-N_c, l_c T_c) differentiates to
+
+    K = sum_c w_c [ J_c^T D_c J_c + sum_k Q_ck H_ck ]
+
+where D_c = dQ_c/dq_c is the law's conjugate tangent (from its rate form) and
+H_ck = d2 q_ck/du2 carries the geometric terms in the current forces (seed
+Eq. 30-34: the -F2 dalpha and +F1 dalpha terms).  For the diamond this gives
+the seed's Eq. (38) for Cundall--Strack and Eq. (51) for McNamara et al.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ncstab.laws.registry import Law
+from ncstab.symbolic.compile import compile_law
+from ncstab.systems.protocol import DiscreteSystem, conjugate_forces
+
+__all__ = [
+    "conjugate_tangent",
+    "contact_forces",
+    "generalized_forces",
+    "tangent_operator",
+    "tangent_operator_at_forces",
+]
+
+
+def conjugate_tangent(
+    law: Law, length: np.ndarray, alpha: np.ndarray, normal: np.ndarray, tangential: np.ndarray
+) -> np.ndarray:
+    """D = d(-N, l T)/d(l, alpha) of a law at a contact state, ``(..., 2, 2)``.
+
+    From the rate matrix C ([dN, dT] = C [dl, dalpha], seed Eq. 13/22/26):
+    ``D = [[-C_Nl, -C_Na], [T + l C_Tl, l C_Ta]]``.  D is symmetric for a
+    hyperelastic law (seed Eq. 17).
+    """
+    rate = compile_law(law.definition).rate_matrix(law, length, alpha, normal, tangential)
+    top = -rate[..., 0, :]
+    bottom = np.stack(
+        [tangential + length * rate[..., 1, 0], length * rate[..., 1, 1]], axis=-1
+    )
+    return np.stack([top, bottom], axis=-2)
+
+
+def contact_forces(system: DiscreteSystem, law: Law, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(N, T) per contact from the law's total form at displacements ``u``.
+
+    Returns two arrays of shape ``(..., n_contacts)``.
+
+    Raises
+    ------
+    ValueError
+        For a law without a total tangential force (T is then an internal
+        variable that only a path can carry).
+    """
+    compiled = compile_law(law.definition)
+    q = system.contact_variables(u)
+    normal = np.stack(
+        [compiled.normal_force(law, q[..., c, 0], q[..., c, 1]) for c in range(system.n_contacts)], -1
+    )
+    tangential = np.stack(
+        [compiled.tangential_force(law, q[..., c, 0], q[..., c, 1]) for c in range(system.n_contacts)],
+        -1,
+    )
+    return normal, tangential
+
+
+def generalized_forces(
+    system: DiscreteSystem,
+    law: Law,
+    u: np.ndarray,
+    tangential: np.ndarray | None = None,
+) -> np.ndarray:
+    """Equilibrium forces F(u) (seed Eq. 4), shape ``(..., n_dof)``.
+
+    ``tangential`` (shape ``(..., n_contacts)``) supplies T for a law without a
+    total tangential form (its internal variable); otherwise T comes from the law.
+    """
+    compiled = compile_law(law.definition)
+    q = system.contact_variables(u)
+    normal = np.stack(
+        [compiled.normal_force(law, q[..., c, 0], q[..., c, 1]) for c in range(system.n_contacts)], -1
+    )
+    if tangential is None:
+        _, tangential = contact_forces(system, law, u)
+    return system.generalized_forces(q, normal, np.asarray(tangential, dtype=float))
+
+
+def _assemble(system: DiscreteSystem, law: Law, q: np.ndarray, normal: np.ndarray, tangential: np.ndarray) -> np.ndarray:
+    jacobian = system.contact_jacobian(q)
+    hessian = system.contact_hessian(q)
+    weights = system.contact_weights
+    stiffness = 0.0
+    for c in range(system.n_contacts):  # contact families: a handful, not cases
+        length, alpha = q[..., c, 0], q[..., c, 1]
+        d_matrix = conjugate_tangent(law, length, alpha, normal[..., c], tangential[..., c])
+        conjugate = conjugate_forces(length, normal[..., c], tangential[..., c])
+        material = np.einsum("...ki,...kl,...lj->...ij", jacobian[..., c, :, :], d_matrix, jacobian[..., c, :, :])
+        geometric = np.einsum("...k,...kij->...ij", conjugate, hessian[..., c, :, :, :])
+        stiffness = stiffness + weights[c] * (material + geometric)
+    return np.asarray(stiffness)
+
+
+def tangent_operator(
+    system: DiscreteSystem,
+    law: Law,
+    u: np.ndarray,
+    tangential: np.ndarray | None = None,
+) -> np.ndarray:
+    """K = dF/du at displacements ``u``, shape ``(..., n_dof, n_dof)``.
+
+    Parameters
+    ----------
+    system, law
+        The system and its contact law (parameters broadcast with ``u[..., 0]``).
+    u
+        Generalized displacements, ``(..., n_dof)``.
+    tangential
+        Current T per contact, ``(..., n_contacts)``; required for a law without
+        a total tangential form (Cundall--Strack), ignored otherwise.
+    """
+    u = np.asarray(u, dtype=float)
+    q = system.contact_variables(u)
+    compiled = compile_law(law.definition)
+    normal = np.stack(
+        [compiled.normal_force(law, q[..., c, 0], q[..., c, 1]) for c in range(system.n_contacts)], -1
+    )
+    if law.has_total_form:
+        _, tangential = contact_forces(system, law, u)
+    elif tangential is None:
+        raise ValueError(
+            f"law {law.name!r} has T as an internal variable: pass its current value "
+            "as `tangential` (shape (..., n_contacts))"
+        )
+    return _assemble(system, law, q, normal, np.asarray(tangential, dtype=float))
+
+
+def tangent_operator_at_forces(
+    system: DiscreteSystem, law: Law, u: np.ndarray, forces: np.ndarray
+) -> np.ndarray:
+    """K at displacements ``u`` carrying generalized forces ``F`` (any law).
+
+    The contact forces are recovered from F by inverting the equilibrium (for
+    the diamond, seed Eq. 4), so this is the operator of seed Eq. (34)/(38)
+    written with the current (F1, F2), whatever the law's history.
+    """
+    u = np.asarray(u, dtype=float)
+    q = system.contact_variables(u)
+    normal, tangential = system.contact_forces(q, np.asarray(forces, dtype=float))
+    return _assemble(system, law, q, normal, tangential)
