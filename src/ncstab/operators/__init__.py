@@ -17,6 +17,7 @@ from ncstab.operators.tangent import (
     contact_forces,
     generalized_forces,
     tangent_operator,
+    tangent_operator_at_contact_state,
     tangent_operator_at_forces,
 )
 
@@ -35,5 +36,6 @@ __all__ = [
     "skew_part",
     "symmetric_part",
     "tangent_operator",
+    "tangent_operator_at_contact_state",
     "tangent_operator_at_forces",
 ]

@@ -25,6 +25,7 @@ __all__ = [
     "contact_forces",
     "generalized_forces",
     "tangent_operator",
+    "tangent_operator_at_contact_state",
     "tangent_operator_at_forces",
 ]
 
@@ -90,7 +91,14 @@ def generalized_forces(
     return system.generalized_forces(q, normal, np.asarray(tangential, dtype=float))
 
 
-def _assemble(system: DiscreteSystem, law: Law, q: np.ndarray, normal: np.ndarray, tangential: np.ndarray) -> np.ndarray:
+def tangent_operator_at_contact_state(
+    system: DiscreteSystem, law: Law, q: np.ndarray, normal: np.ndarray, tangential: np.ndarray
+) -> np.ndarray:
+    """K from contact variables ``q`` (..., n_c, 2) and forces (N, T) (..., n_c).
+
+    The assembly K = sum_c w_c [J_c^T D_c J_c + sum_k Q_ck H_ck] itself; the
+    other entry points compute (q, N, T) and call this.
+    """
     jacobian = system.contact_jacobian(q)
     hessian = system.contact_hessian(q)
     weights = system.contact_weights
@@ -136,7 +144,7 @@ def tangent_operator(
             f"law {law.name!r} has T as an internal variable: pass its current value "
             "as `tangential` (shape (..., n_contacts))"
         )
-    return _assemble(system, law, q, normal, np.asarray(tangential, dtype=float))
+    return tangent_operator_at_contact_state(system, law, q, normal, np.asarray(tangential, dtype=float))
 
 
 def tangent_operator_at_forces(
@@ -151,4 +159,4 @@ def tangent_operator_at_forces(
     u = np.asarray(u, dtype=float)
     q = system.contact_variables(u)
     normal, tangential = system.contact_forces(q, np.asarray(forces, dtype=float))
-    return _assemble(system, law, q, normal, tangential)
+    return tangent_operator_at_contact_state(system, law, q, normal, tangential)

@@ -146,3 +146,29 @@ class DiamondChain:
 
     def secondary_gap_names(self) -> tuple[str, str]:
         return ("top_bottom", "left_right")
+
+    def secondary_forces(self, u: np.ndarray, kappa: np.ndarray) -> np.ndarray:
+        """Generalized forces of the secondary contacts once they touch, ``(..., 2)``.
+
+        A frictionless unilateral normal spring of stiffness kappa k_n acts
+        between top and bottom grains (centre distance d = 2 (cos alpha0 -
+        Delta_1) in units of 2R) and between left and right ones
+        (d = 2 (sin alpha0 - Delta_2)).  With its energy
+        kappa <1 - d>^2 / 2 and the per-contact external work F . du / 2
+        (seed Eq. 5, four primary contacts), it adds kappa <1 - d> to F_1
+        (resp. F_2).
+        """
+        overlap = self._secondary_overlaps(u)
+        return np.asarray(kappa)[..., None] * np.maximum(overlap, 0.0)
+
+    def secondary_stiffness(self, u: np.ndarray, kappa: np.ndarray) -> np.ndarray:
+        """Tangent of :meth:`secondary_forces`: diag(2 kappa H(1 - d)), ``(..., 2, 2)``."""
+        overlap = self._secondary_overlaps(u)
+        diagonal = 2.0 * np.asarray(kappa)[..., None] * (overlap > 0.0)
+        return diagonal[..., :, None] * np.eye(2)
+
+    def _secondary_overlaps(self, u: np.ndarray) -> np.ndarray:
+        u = np.asarray(u, dtype=float)
+        top_bottom = 1.0 - 2.0 * (np.cos(self._alpha0) - u[..., 0])
+        left_right = 1.0 - 2.0 * (np.sin(self._alpha0) - u[..., 1])
+        return np.stack([top_bottom, left_right], axis=-1)

@@ -1,0 +1,32 @@
+"""Loading programmes and the batched path engine (layer ``paths/``)."""
+
+from ncstab.paths.api import ParameterGrid, follow
+from ncstab.paths.engine import CaseResult, follow_cases
+from ncstab.paths.model import CaseBatch
+from ncstab.paths.options import PathOptions, SystemSpec
+from ncstab.paths.programme import (
+    EVENTS,
+    CycleStage,
+    LoadingProgramme,
+    ProgrammeError,
+    Stage,
+    parse_programme,
+)
+from ncstab.paths.result import Path
+
+__all__ = [
+    "EVENTS",
+    "CaseBatch",
+    "CaseResult",
+    "CycleStage",
+    "LoadingProgramme",
+    "ParameterGrid",
+    "Path",
+    "PathOptions",
+    "ProgrammeError",
+    "Stage",
+    "SystemSpec",
+    "follow",
+    "follow_cases",
+    "parse_programme",
+]

@@ -1,0 +1,200 @@
+"""``ncstab.follow``: one call from (system, laws, programme, parameters) to a Path."""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from ncstab.laws.registry import Law, law_definition, make_law
+from ncstab.paths.engine import follow_cases
+from ncstab.paths.model import CaseBatch
+from ncstab.paths.options import PathOptions, SystemSpec
+from ncstab.paths.programme import LoadingProgramme, parse_programme
+from ncstab.paths.result import Path
+from ncstab.systems import SYSTEMS
+
+__all__ = ["ParameterGrid", "follow"]
+
+#: Parameters every system understands besides its own and its law's.
+ENGINE_PARAMETERS = {"kappa": 1.0}
+
+
+@dataclass(frozen=True)
+class ParameterGrid:
+    """Sweep dimensions (lists) and fixed values (scalars) of a study.
+
+    Attributes
+    ----------
+    sweep
+        Ordered ``name -> 1-D values`` of the swept parameters.
+    fixed
+        ``name -> value`` of the fixed ones.
+    """
+
+    sweep: dict[str, np.ndarray]
+    fixed: dict[str, float]
+
+    @classmethod
+    def from_mapping(cls, parameters: Mapping[str, Any]) -> "ParameterGrid":
+        sweep: dict[str, np.ndarray] = {}
+        fixed: dict[str, float] = {}
+        for name, value in parameters.items():
+            if isinstance(value, (list, tuple, np.ndarray)):
+                array = np.asarray(value, dtype=float).ravel()
+                if array.size == 0:
+                    raise ValueError(f"parameter {name!r}: an empty sweep has no cases")
+                if not np.all(np.isfinite(array)):
+                    raise ValueError(f"parameter {name!r}: every swept value must be finite")
+                sweep[name] = array
+            else:
+                if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)):
+                    raise ValueError(f"parameter {name!r}: expected a number or a list, got {value!r}")
+                if not np.isfinite(value):
+                    raise ValueError(f"parameter {name!r} = {value!r} is not finite")
+                fixed[name] = float(value)
+        return cls(sweep, fixed)
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return tuple(v.size for v in self.sweep.values())
+
+    @property
+    def size(self) -> int:
+        return int(np.prod(self.shape)) if self.sweep else 1
+
+    def case_values(self) -> dict[str, np.ndarray]:
+        """Every parameter as a flat array over the cases (C order over the sweep)."""
+        out: dict[str, np.ndarray] = {}
+        if self.sweep:
+            mesh = np.meshgrid(*self.sweep.values(), indexing="ij")
+            out.update({name: m.ravel() for name, m in zip(self.sweep, mesh)})
+        out.update({name: np.full(self.size, value) for name, value in self.fixed.items()})
+        return out
+
+    @property
+    def names(self) -> list[str]:
+        return list(self.sweep) + list(self.fixed)
+
+
+def _law_batch(
+    law_name: str,
+    spec: SystemSpec,
+    values: dict[str, np.ndarray],
+) -> CaseBatch:
+    definition = law_definition(law_name)
+    law_parameters = {p.name: values[p.name] for p in definition.parameters if p.name in values}
+    law: Law = make_law(definition, **law_parameters)
+    system_class = SYSTEMS[spec.name]
+    system_parameter_names = [p.name for p in system_class.parameter_specs]  # type: ignore[attr-defined]
+    system = system_class(**{name: values[name] for name in system_parameter_names if name in values})
+    kappa = values.get("kappa", np.full(next(iter(values.values())).size, ENGINE_PARAMETERS["kappa"]))
+    if np.any(~np.isfinite(kappa) | (kappa < 0)):
+        raise ValueError("parameter 'kappa' (secondary-contact stiffness ratio) must be finite and >= 0")
+    return CaseBatch(system, law, np.asarray(kappa, dtype=float), spec.secondary_contacts == "activate")
+
+
+def follow(
+    system: SystemSpec | str,
+    laws: Sequence[str] | str,
+    programme: LoadingProgramme | Sequence[Mapping[str, Any]],
+    parameters: Mapping[str, Any] | None = None,
+    options: PathOptions | None = None,
+    *,
+    progress: bool = False,
+    study_text: str = "",
+) -> Path:
+    """Follow a loading programme for every law and every case of a sweep.
+
+    Parameters
+    ----------
+    system
+        A :class:`SystemSpec` or a system name (``"diamond"``).
+    laws
+        Law names (with modifiers, ``"mcnamara+no_tension"``); a sweep dimension.
+    programme
+        A validated :class:`LoadingProgramme` or raw stage tables.
+    parameters
+        ``name -> scalar`` (fixed) or ``name -> list`` (sweep dimension, in the
+        given order): law parameters (``gamma``, ``alpha0``), system parameters,
+        ``kappa`` and any parameter the programme names.
+    options
+        Engine options (:class:`PathOptions`).
+    progress
+        Show a tqdm progress bar (cases ended / cases).
+    study_text
+        Study file text kept in the Dataset's provenance.
+
+    Returns
+    -------
+    Path
+        Per-case status, states, events; ``to_dataset()`` for the archive.
+
+    Raises
+    ------
+    ValueError
+        Bad parameters, unknown laws or systems, or parameters nobody uses.
+    ProgrammeError
+        A malformed loading programme (names the stage and the field).
+    """
+    spec = SystemSpec(system) if isinstance(system, str) else system
+    if spec.normal != "deformable":
+        raise NotImplementedError("normal = 'rigid' (pure-shear limit) is not available in this version")
+    options = options or PathOptions()
+    law_names = [laws] if isinstance(laws, str) else list(laws)
+    if not law_names:
+        raise ValueError("give at least one law")
+    if len(set(law_names)) != len(law_names):
+        raise ValueError(f"laws: each law once, got {law_names}")
+    definitions = [law_definition(name) for name in law_names]
+    system_class = SYSTEMS[spec.name]
+    if not isinstance(programme, LoadingProgramme):
+        programme = parse_programme(programme, system_class.dof_names, system_class.force_names)  # type: ignore[attr-defined]
+    grid = ParameterGrid.from_mapping(parameters or {})
+    known = set(ENGINE_PARAMETERS) | {p.name for p in system_class.parameter_specs}  # type: ignore[attr-defined]
+    known |= set(itertools.chain.from_iterable(d.parameter_names for d in definitions))
+    referenced = programme.parameter_references()
+    missing = sorted(referenced - set(grid.names))
+    if missing:
+        raise ValueError(
+            f"the loading programme refers to undefined parameter(s) {', '.join(map(repr, missing))}; "
+            f"defined: {', '.join(grid.names) or 'none'}"
+        )
+    unused = sorted(set(grid.names) - known - referenced)
+    if unused:
+        raise ValueError(
+            f"parameter(s) {', '.join(map(repr, unused))} are used by neither the system, the laws "
+            "nor the loading programme"
+        )
+    values = grid.case_values()
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+
+        bar = tqdm(total=grid.size * len(law_names), unit="case", desc="ncstab", leave=False)
+    results = []
+    try:
+        for name in law_names:
+            batch = _law_batch(name, spec, values)
+            results.append(
+                follow_cases(
+                    batch, programme, values, options, spec.secondary_contacts,
+                    progress=bar.update if bar is not None else None,
+                )
+            )
+    finally:
+        if bar is not None:
+            bar.close()
+    return Path(
+        laws=tuple(law_names),
+        grid=grid,
+        system=spec,
+        programme=programme,
+        options=options,
+        results=tuple(results),
+        dof_names=system_class.dof_names,  # type: ignore[attr-defined]
+        force_names=system_class.force_names,  # type: ignore[attr-defined]
+        study_text=study_text,
+    )

@@ -1,0 +1,591 @@
+"""The batched path engine: arclength continuation of the rate system.
+
+All cases of one law advance together as arrays (B cases, per-case step sizes,
+masks for finished cases).  One formulation serves every law: the unit tangent
+of the constrained rate system (:mod:`ncstab.paths.tangent_field`) is integrated
+in arclength s with a batched DOP853 step, carrying
+
+    y = (u, lambda, internal variables, work W)
+
+with W = int F . du / 2 (the work per contact, seed Eq. 5).  For a law with a
+total form every accepted step is then projected onto the equilibrium manifold
+by Newton (minimum-norm corrections), so there is no drift; for a strongly
+hypoelastic law (T an internal variable) the integration itself is the path,
+at the integrator's accuracy.  Events are sign changes of indicators over an
+accepted step, located by root finding on the step length
+(:mod:`ncstab.paths.events`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from ncstab.paths.events import (
+    INDICATOR_EVENTS,
+    TARGET_COLUMN,
+    indicator_values,
+    locate_sign_changes,
+)
+from ncstab.paths.integrator import ERROR_EXPONENT, dop853_step
+from ncstab.paths.model import CaseBatch, Evaluation
+from ncstab.paths.options import PathOptions
+from ncstab.paths.programme import CURRENT, EVENTS, CycleStage, LoadingProgramme, Stage
+from ncstab.paths.tangent_field import StageArrays, control_matrix, path_tangent
+
+__all__ = ["CaseResult", "follow_cases"]
+
+RUNNING = "running"
+FINISHED = "finished"
+
+
+@dataclass
+class _Aux:
+    evaluation: Evaluation
+    du: np.ndarray
+    dlam: np.ndarray
+
+
+class _Layout:
+    """Column layout of the integrated state y = (u, lambda, internal, work)."""
+
+    def __init__(self, n: int, n_internal: int) -> None:
+        self.n = n
+        self.n_internal = n_internal
+        self.u = slice(0, n)
+        self.lam = n
+        self.internal = slice(n + 1, n + 1 + n_internal)
+        self.work = n + 1 + n_internal
+        self.size = n + 2 + n_internal
+
+
+def _rhs(batch: CaseBatch, stage: StageArrays, y: np.ndarray, layout: _Layout) -> tuple[np.ndarray, _Aux]:
+    """dy/ds: oriented unit tangent, internal-variable rates, work rate."""
+    u, lam, internal = y[:, layout.u], y[:, layout.lam], y[:, layout.internal]
+    evaluation = batch.evaluate(u, internal)
+    du, dlam, _ = path_tangent(evaluation.stiffness, stage, lam)
+    dinternal = batch.internal_rate(evaluation, du)
+    dwork = 0.5 * np.sum(evaluation.forces * du, axis=-1)
+    dy = np.concatenate([du, dlam[:, None], dinternal, dwork[:, None]], axis=-1)
+    return dy, _Aux(evaluation, du, dlam)
+
+
+def _project(
+    batch: CaseBatch, stage: StageArrays, y: np.ndarray, layout: _Layout, options: PathOptions
+) -> tuple[np.ndarray, np.ndarray]:
+    """Newton projection of (u, lambda) onto equilibrium + control constraints.
+
+    Solves P u + Q F(u) = g(lambda) by minimum-norm Gauss--Newton corrections
+    (the system has one more unknown than equations).  Returns the projected
+    states and a mask of the cases that converged to ``options.newton_tol``.
+    """
+    y = y.copy()
+    converged = np.zeros(y.shape[0], dtype=bool)
+    todo = np.arange(y.shape[0])
+    for _ in range(options.newton_max_iter + 1):
+        sub = batch.take(todo) if todo.size < y.shape[0] else batch
+        st = stage.take(todo) if todo.size < y.shape[0] else stage
+        u, lam = y[todo, layout.u], y[todo, layout.lam]
+        with np.errstate(all="ignore"):
+            evaluation = sub.evaluate(u, y[todo, layout.internal])
+            residual = st.residual(u, evaluation.forces, lam)
+        size = np.max(np.abs(residual), axis=-1)
+        ok = size <= options.newton_tol
+        converged[todo[ok]] = True
+        keep = ~ok & np.isfinite(size)
+        if not keep.any():
+            break
+        todo, residual = todo[keep], residual[keep]
+        stiffness = evaluation.stiffness[keep]
+        st = st.take(np.flatnonzero(keep))
+        _, dg = st.control_path(lam[keep])
+        matrix = control_matrix(stiffness, st.force_controlled)
+        normal_matrix = matrix @ np.swapaxes(matrix, -1, -2) + dg[:, :, None] * dg[:, None, :]
+        with np.errstate(all="ignore"):
+            try:
+                z = np.linalg.solve(normal_matrix, residual[..., None])[..., 0]
+            except np.linalg.LinAlgError:
+                z = np.stack([np.linalg.lstsq(a, r, rcond=None)[0] for a, r in zip(normal_matrix, residual)])
+        y[todo, layout.u] -= np.einsum("bji,bj->bi", matrix, z)
+        y[todo, layout.lam] += np.sum(dg * z, axis=-1)
+    return y, converged
+
+
+def _advance(
+    batch: CaseBatch,
+    stage: StageArrays,
+    y0: np.ndarray,
+    h: np.ndarray,
+    layout: _Layout,
+    options: PathOptions,
+) -> tuple[np.ndarray, np.ndarray]:
+    """One step of length h per case: DOP853, then Newton projection (total forms)."""
+
+    def rhs(y: np.ndarray) -> np.ndarray:
+        return _rhs(batch, stage, y, layout)[0]
+
+    y1, err = dop853_step(rhs, y0, h, options.rtol, options.atol)
+    if batch.law.has_total_form and y1.shape[0]:
+        finite = np.isfinite(err)
+        index = np.flatnonzero(finite)
+        if index.size:
+            projected, converged = _project(batch.take(index), stage.take(index), y1[index], layout, options)
+            y1[index] = projected
+            err[index[~converged]] = np.inf
+    return y1, err
+
+
+def _indicators(batch: CaseBatch, stage: StageArrays, y: np.ndarray, aux: _Aux, layout: _Layout) -> np.ndarray:
+    gaps = batch.system.secondary_gaps(aux.evaluation.q)
+    return indicator_values(aux.evaluation.stiffness, gaps, stage, y[:, layout.lam], aux.dlam)
+
+
+@dataclass
+class _Recorder:
+    """Accumulates stored states; assembled into padded (B, steps, ...) arrays."""
+
+    size: int
+    chunks: list[dict[str, np.ndarray]] = field(default_factory=list)
+
+    def add(self, case: np.ndarray, **values: np.ndarray) -> None:
+        if case.size:
+            self.chunks.append({"case": case, **values})
+
+    def assemble(self) -> tuple[dict[str, np.ndarray], np.ndarray]:
+        cases = np.concatenate([c["case"] for c in self.chunks])
+        order = np.argsort(cases, kind="stable")
+        counts = np.bincount(cases, minlength=self.size)
+        length = int(counts.max()) if counts.size else 0
+        starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        sorted_cases = cases[order]
+        position = np.arange(cases.size) - starts[sorted_cases]
+        out: dict[str, np.ndarray] = {}
+        for key in self.chunks[0]:
+            if key == "case":
+                continue
+            values = np.concatenate([c[key] for c in self.chunks])[order]
+            fill = -1 if values.dtype.kind == "i" else np.nan
+            array = np.full((self.size, length) + values.shape[1:], fill, dtype=values.dtype)
+            array[sorted_cases, position] = values
+            out[key] = array
+        return out, counts
+
+
+@dataclass
+class CaseResult:
+    """Result of one law's batch of cases (see :class:`ncstab.paths.Path`).
+
+    Attributes
+    ----------
+    steps
+        Padded arrays ``(B, n_steps_max, ...)``: ``s``, ``stage``, ``u``, ``F``,
+        ``lam``, ``internal``, ``work``, ``l``, ``alpha``, ``N``, ``T``, ``K``,
+        ``du`` (unit tangent), ``dlam``.
+    n_steps
+        Stored states per case, ``(B,)``.
+    status, message
+        Per case: ``finished``, ``stopped:<event>`` or ``failed:<reason>``, and a
+        sentence saying what happened.
+    events
+        Per event name: arrays ``found (B,)``, ``s``, ``s_lower``, ``s_upper``,
+        ``stage``, ``u (B, n)``, ``F (B, n)``, ``l``, ``alpha``, ``N``, ``T``,
+        ``K (B, n, n)``.
+    counters
+        ``accepted``, ``rejected``, ``located`` per case.
+    """
+
+    steps: dict[str, np.ndarray]
+    n_steps: np.ndarray
+    status: np.ndarray
+    message: np.ndarray
+    events: dict[str, dict[str, np.ndarray]]
+    counters: dict[str, np.ndarray]
+
+
+def _empty_events(size: int, n: int) -> dict[str, dict[str, np.ndarray]]:
+    def table() -> dict[str, np.ndarray]:
+        return {
+            "found": np.zeros(size, dtype=bool),
+            "s": np.full(size, np.nan),
+            "s_lower": np.full(size, np.nan),
+            "s_upper": np.full(size, np.nan),
+            "stage": np.full(size, -1, dtype=int),
+            "lam": np.full(size, np.nan),
+            "u": np.full((size, n), np.nan),
+            "F": np.full((size, n), np.nan),
+            "l": np.full(size, np.nan),
+            "alpha": np.full(size, np.nan),
+            "N": np.full(size, np.nan),
+            "T": np.full(size, np.nan),
+            "K": np.full((size, n, n), np.nan),
+        }
+
+    return {name: table() for name in EVENTS}
+
+
+def follow_cases(
+    batch: CaseBatch,
+    programme: LoadingProgramme,
+    values: dict[str, np.ndarray],
+    options: PathOptions,
+    secondary_contacts: str = "activate",
+    progress: Callable[[int], None] | None = None,
+) -> CaseResult:
+    """Follow a loading programme for a batch of cases of one law.
+
+    Parameters
+    ----------
+    batch
+        The cases (system + law with parameter arrays of shape (B,)).
+    programme
+        Validated loading programme.
+    values
+        Every named parameter the programme refers to, as arrays ``(B,)``.
+    options
+        Engine options.
+    secondary_contacts
+        ``"activate"``, ``"ignore"`` or ``"stop"`` (see ``SystemSpec``).
+    progress
+        Called with the number of cases that just ended (progress bars).
+
+    Returns
+    -------
+    CaseResult
+    """
+    size = batch.size
+    n = batch.n_dof
+    layout = _Layout(n, batch.n_internal)
+    dofs, forces = batch.system.dof_names, batch.system.force_names
+    y = np.zeros((size, layout.size))
+    stage_index = np.zeros(size, dtype=int)
+    status = np.full(size, RUNNING, dtype=object)
+    message = np.full(size, "", dtype=object)
+    step_size = np.full(size, options.initial_step)
+    arclength = np.zeros(size)
+    accepted_count = np.zeros(size, dtype=int)
+    rejected_count = np.zeros(size, dtype=int)
+    located_count = np.zeros(size, dtype=int)
+    previous = np.full((size, len(INDICATOR_EVENTS)), np.nan)
+    stages = StageArrays.empty(size, n)
+    recorder = _Recorder(size)
+    events = _empty_events(size, n)
+
+    event_column = {name: [i for i, e in enumerate(INDICATOR_EVENTS) if e == name] for name in EVENTS}
+    stop_table = np.zeros((len(programme), len(INDICATOR_EVENTS)), dtype=bool)
+    for k, stage in enumerate(programme.stages):
+        for name in stage.stop_at:
+            stop_table[k, event_column[name]] = True
+        if secondary_contacts == "stop":
+            stop_table[k, event_column["secondary_contact"]] = True
+    break_columns = np.zeros(len(INDICATOR_EVENTS), dtype=bool)
+    if secondary_contacts == "activate":
+        break_columns[event_column["secondary_contact"]] = True
+
+    def fail(index: np.ndarray, reason: str, text: str | np.ndarray) -> None:
+        if index.size:
+            status[index] = f"failed:{reason}"
+            message[index] = text
+            if progress:
+                progress(index.size)
+
+    def end(index: np.ndarray, state: str, text: str | np.ndarray) -> None:
+        if index.size:
+            status[index] = state
+            message[index] = text
+            if progress:
+                progress(index.size)
+
+    def record(index: np.ndarray, yy: np.ndarray, aux: _Aux) -> None:
+        ev = aux.evaluation
+        recorder.add(
+            index,
+            s=arclength[index],
+            stage=stage_index[index],
+            u=yy[:, layout.u],
+            lam=yy[:, layout.lam],
+            internal=yy[:, layout.internal],
+            work=yy[:, layout.work],
+            F=ev.forces,
+            l=ev.q[:, 0, 0],
+            alpha=ev.q[:, 0, 1],
+            N=ev.normal[:, 0],
+            T=ev.tangential[:, 0],
+            K=ev.stiffness,
+            du=aux.du,
+            dlam=aux.dlam,
+        )
+
+    def resolve(value: float | str, index: np.ndarray, current: dict[str, np.ndarray]) -> np.ndarray:
+        if isinstance(value, str):
+            if value == CURRENT:
+                raise AssertionError("resolved by caller")
+            return np.asarray(values[value], dtype=float)[index] if np.ndim(values[value]) else np.full(
+                index.size, float(values[value])
+            )
+        return np.full(index.size, float(value))
+
+    def enter(index: np.ndarray, k: int) -> None:
+        """Cases ``index`` start stage k (vectorized; zero-length stages cascade)."""
+        while index.size:
+            if k >= len(programme):
+                end(index, FINISHED, f"finished all {len(programme)} loading stage(s)")
+                return
+            stage = programme.stages[k]
+            stage_index[index] = k
+            sub = batch.take(index)
+            u, internal = y[index][:, layout.u], y[index][:, layout.internal]
+            evaluation = sub.evaluate(u, internal)
+            current = {name: u[:, i] for i, name in enumerate(dofs)}
+            current.update({name: evaluation.forces[:, i] for i, name in enumerate(forces)})
+            arrays = StageArrays.empty(index.size, n)
+            bad = np.zeros(index.size, dtype=bool)
+            reasons = np.full(index.size, "", dtype=object)
+            if isinstance(stage, Stage):
+                controls = stage.controls()
+                driven_name, target = stage.driven
+                for i, (dof, force) in enumerate(zip(dofs, forces)):
+                    name = force if force in controls else dof
+                    arrays.force_controlled[:, i] = name == force
+                    arrays.offset[:, i] = current[name]
+                    if name == driven_name:
+                        arrays.offset[:, i] = 0.0
+                        arrays.slope[:, i] = 1.0
+                    elif controls[name] != CURRENT:
+                        nominal = resolve(controls[name], index, current)
+                        mismatch = np.abs(nominal - current[name]) > 1e-9 * (1 + np.abs(nominal))
+                        reasons[mismatch] = (
+                            f"stage {k + 1} holds {name} = {controls[name]} but {name} is not at that "
+                            "value when the stage starts; add a stage that drives it there first"
+                        )
+                        bad |= mismatch
+                start = current[driven_name]
+                arrays.lam_end = resolve(target, index, current)
+                arrays.target_sign = np.sign(arrays.lam_end - start)
+                lam = start
+            else:
+                assert isinstance(stage, CycleStage)
+                center = np.column_stack([resolve(c, index, current) for c in stage.center])
+                relative = u - center
+                arrays.is_cycle[:] = True
+                arrays.center = center
+                arrays.radius = np.hypot(relative[:, 0], relative[:, 1])
+                arrays.theta0 = np.arctan2(relative[:, 1], relative[:, 0])
+                arrays.turn_direction[:] = stage.direction
+                arrays.lam_end[:] = 2 * math.pi * stage.turns
+                arrays.target_sign[:] = 1.0
+                lam = np.zeros(index.size)
+                zero = arrays.radius <= 1e-14
+                reasons[zero] = f"stage {k + 1}: the state is at the centre of the cycle (zero radius)"
+                bad |= zero
+            y[index, layout.lam] = lam
+            zero_length = (arrays.target_sign == 0) & ~bad
+            du, dlam, _ = path_tangent(evaluation.stiffness, arrays, lam, oriented=False)
+            singular = ~(np.abs(dlam) > 0) & ~bad & ~zero_length
+            reasons[singular] = (
+                f"stage {k + 1}: the control is singular at the stage start (det of the "
+                "force-controlled block of K is 0): the driven quantity cannot start"
+            )
+            bad |= singular
+            arrays.orientation = np.where(np.abs(dlam) > 0, np.sign(dlam), 1.0) * np.where(
+                arrays.target_sign == 0, 1.0, arrays.target_sign
+            )
+            stages.put(index, arrays)
+            for reason in np.unique(reasons[bad]):
+                which = index[bad & (reasons == reason)]
+                fail(which, "singular_control" if "singular" in reason else "bad_stage_start", reason)
+            go = ~bad & ~zero_length
+            if go.any():
+                gi = index[go]
+                sub_go = batch.take(gi)
+                st_go = stages.take(gi)
+                dy, aux = _rhs(sub_go, st_go, y[gi], layout)
+                previous[gi] = _indicators(sub_go, st_go, y[gi], aux, layout)
+                record(gi, y[gi], aux)
+            index, k = index[zero_length], k + 1
+
+    enter(np.arange(size), 0)
+
+    while True:
+        active = np.flatnonzero(status == RUNNING)
+        if active.size == 0:
+            break
+        sub = batch.take(active) if active.size < size else batch
+        st = stages.take(active)
+        y0 = y[active]
+        h0 = np.minimum(step_size[active], options.max_step)
+        y1, err = _advance(sub, st, y0, h0, layout, options)
+        accept = err <= 1.0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            factor = np.where(err == 0, 10.0, np.clip(0.9 * err**ERROR_EXPONENT, 0.2, 10.0))
+        factor = np.where(np.isfinite(err), factor, 0.25)
+        factor = np.where(accept, factor, np.minimum(factor, 0.9))
+        step_size[active] = np.clip(h0 * factor, 0.0, options.max_step)
+        rejected_count[active[~accept]] += 1
+        underflow = ~accept & (step_size[active] < options.min_step)
+        fail(
+            active[underflow],
+            "step_size_underflow",
+            "the step size fell below min_step: the path cannot be continued "
+            "(non-convergent Newton projection, a kink or a singular point)",
+        )
+        local = np.flatnonzero(accept)
+        if local.size == 0:
+            continue
+        cases = active[local]
+        sub_a = sub.take(local)
+        st_a = st.take(local)
+        y_start = y0[local]
+        h_a = h0[local]
+        y_new = y1[local]
+        _, aux = _rhs(sub_a, st_a, y_new, layout)
+        q = aux.evaluation.q
+        length, angle = q[:, 0, 0], q[:, 0, 1]
+        finite = np.isfinite(y_new).all(-1) & np.isfinite(aux.evaluation.forces).all(-1)
+        outside = ~finite | ~(length > 0) | ~(np.abs(angle) < math.pi / 2)
+        if outside.any():
+            why = np.where(
+                ~finite,
+                "non-finite numbers",
+                np.where(~(length > 0), "l* <= 0", "alpha outside (-pi/2, pi/2)"),
+            )
+            for reason in np.unique(why[outside]):
+                which = outside & (why == reason)
+                fail(
+                    cases[which],
+                    "left_domain",
+                    f"the path left the admissible domain ({reason}) in stage "
+                    f"{stage_index[cases[which][0]] + 1}",
+                )
+        keep = np.flatnonzero(~outside)
+        if keep.size == 0:
+            continue
+        cases, sub_a, st_a = cases[keep], sub_a.take(keep), st_a.take(keep)
+        y_start, h_a, y_new = y_start[keep], h_a[keep], y_new[keep]
+        aux = _Aux(
+            Evaluation(*(getattr(aux.evaluation, f)[keep] for f in ("q", "normal", "tangential", "forces", "stiffness"))),
+            aux.du[keep],
+            aux.dlam[keep],
+        )
+        indicators = _indicators(sub_a, st_a, y_new, aux, layout)
+        before = previous[cases]
+        change = np.sign(before) * np.sign(indicators) < 0
+        change[:, TARGET_COLUMN] = (before[:, TARGET_COLUMN] < 0) & (indicators[:, TARGET_COLUMN] >= 0)
+
+        n_cols = len(INDICATOR_EVENTS)
+        sigma = np.full((cases.size, n_cols), np.inf)
+        lower = np.full((cases.size, n_cols), np.nan)
+        upper = np.full((cases.size, n_cols), np.nan)
+        located_y = np.full((cases.size, n_cols, layout.size), np.nan)
+        exact_target = change[:, TARGET_COLUMN] & (indicators[:, TARGET_COLUMN] == 0)
+        for column in np.flatnonzero(change.any(axis=0)):
+            rows = np.flatnonzero(change[:, column] & ~(exact_target & (column == TARGET_COLUMN)))
+            if rows.size == 0:
+                continue
+
+            def evaluate(index: np.ndarray, lengths: np.ndarray, rows: np.ndarray = rows, column: int = column):
+                pick = rows[index]
+                b, s_ = sub_a.take(pick), st_a.take(pick)
+                yy, e = _advance(b, s_, y_start[pick], lengths, layout, options)
+                _, ax = _rhs(b, s_, yy, layout)
+                return _indicators(b, s_, yy, ax, layout)[:, column], yy
+
+            root, lo, hi, _, state = locate_sign_changes(
+                evaluate, h_a[rows], before[rows, column], indicators[rows, column], options.event_tol
+            )
+            sigma[rows, column], lower[rows, column], upper[rows, column] = root, lo, hi
+            located_y[rows, column] = state
+            located_count[cases[rows]] += 1
+        if exact_target.any():
+            rows = np.flatnonzero(exact_target)
+            sigma[rows, TARGET_COLUMN] = lower[rows, TARGET_COLUMN] = upper[rows, TARGET_COLUMN] = h_a[rows]
+            located_y[rows, TARGET_COLUMN] = y_new[rows]
+
+        cutting = change & (stop_table[stage_index[cases]] | break_columns[None, :])
+        cutting[:, TARGET_COLUMN] = change[:, TARGET_COLUMN]
+        cut_sigma = np.where(cutting, sigma, np.inf)
+        cut_column = np.argmin(cut_sigma, axis=1)
+        is_cut = np.isfinite(cut_sigma[np.arange(cases.size), cut_column])
+        reach = np.where(is_cut, cut_sigma[np.arange(cases.size), cut_column], h_a)
+
+        # Record first occurrences of events reached in this step.
+        for name in EVENTS:
+            columns = event_column[name]
+            sig = sigma[:, columns]
+            best = np.argmin(sig, axis=1)
+            best_sigma = sig[np.arange(cases.size), best]
+            hit = np.isfinite(best_sigma) & (best_sigma <= reach) & ~events[name]["found"][cases]
+            rows = np.flatnonzero(hit)
+            if rows.size == 0:
+                continue
+            col = np.asarray(columns)[best[rows]]
+            state = located_y[rows, col]
+            b, s_ = sub_a.take(rows), st_a.take(rows)
+            _, ax = _rhs(b, s_, state, layout)
+            table = events[name]
+            target = cases[rows]
+            table["found"][target] = True
+            table["s"][target] = arclength[target] + sigma[rows, col]
+            table["s_lower"][target] = arclength[target] + lower[rows, col]
+            table["s_upper"][target] = arclength[target] + upper[rows, col]
+            table["stage"][target] = stage_index[target]
+            table["lam"][target] = state[:, layout.lam]
+            table["u"][target] = state[:, layout.u]
+            table["F"][target] = ax.evaluation.forces
+            table["l"][target] = ax.evaluation.q[:, 0, 0]
+            table["alpha"][target] = ax.evaluation.q[:, 0, 1]
+            table["N"][target] = ax.evaluation.normal[:, 0]
+            table["T"][target] = ax.evaluation.tangential[:, 0]
+            table["K"][target] = ax.evaluation.stiffness
+
+        # Advance: to the step end, or to the located cut point.
+        cut_rows = np.flatnonzero(is_cut)
+        y_new = y_new.copy()
+        if cut_rows.size:
+            y_new[cut_rows] = located_y[cut_rows, cut_column[cut_rows]]
+            b, s_ = sub_a.take(cut_rows), st_a.take(cut_rows)
+            _, ax_cut = _rhs(b, s_, y_new[cut_rows], layout)
+            ind_cut = _indicators(b, s_, y_new[cut_rows], ax_cut, layout)
+            # Keep the post-crossing sign of the column that cut, so a break
+            # point (secondary contact) is not detected twice.
+            ind_cut[np.arange(cut_rows.size), cut_column[cut_rows]] = indicators[cut_rows, cut_column[cut_rows]]
+            indicators[cut_rows] = ind_cut
+            for f in ("q", "normal", "tangential", "forces", "stiffness"):
+                getattr(aux.evaluation, f)[cut_rows] = getattr(ax_cut.evaluation, f)
+            aux.du[cut_rows] = ax_cut.du
+            aux.dlam[cut_rows] = ax_cut.dlam
+        y[cases] = y_new
+        arclength[cases] += reach
+        accepted_count[cases] += 1
+        previous[cases] = indicators
+        record(cases, y_new, aux)
+
+        # Stage ends: target reached, or a stop event.
+        target_hit = is_cut & (cut_column == TARGET_COLUMN)
+        stop_hit = is_cut & ~target_hit & stop_table[stage_index[cases], cut_column]
+        for column in np.unique(cut_column[stop_hit]):
+            which = cases[stop_hit & (cut_column == column)]
+            name = INDICATOR_EVENTS[column]
+            end(which, f"stopped:{name}", f"stopped at {name} in stage {stage_index[which[0]] + 1}")
+        too_many = (accepted_count[cases] >= options.max_steps) & ~target_hit & ~stop_hit
+        fail(
+            cases[too_many],
+            "max_steps",
+            f"reached max_steps = {options.max_steps} accepted steps before the end of the programme",
+        )
+        if target_hit.any():
+            finished_stage = cases[target_hit]
+            for k in np.unique(stage_index[finished_stage]):
+                enter(finished_stage[stage_index[finished_stage] == k], int(k) + 1)
+
+    steps, counts = recorder.assemble()
+    return CaseResult(
+        steps=steps,
+        n_steps=counts,
+        status=status.astype(str),
+        message=message.astype(str),
+        events=events,
+        counters={"accepted": accepted_count, "rejected": rejected_count, "located": located_count},
+    )

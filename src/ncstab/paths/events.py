@@ -1,0 +1,161 @@
+"""Event indicators along a path and their batched localisation.
+
+Each event is the sign change of a scalar indicator of the state:
+
+=====================  ==========================================================
+event                  indicator
+=====================  ==========================================================
+limit_point            det K (seed Eq. 36)
+hill_loss              smallest eigenvalue of K_sym (Hill's condition)
+controllability_loss   det M = det K_SS of the stage's control matrix (Eq. 35)
+flutter_onset          discriminant of K's characteristic polynomial
+secondary_contact      top-bottom and left-right gaps 2 l cos a - 1, 2 l sin a - 1
+turning_point          dlambda/ds, the driven quantity's rate along the path
+=====================  ==========================================================
+
+plus the stage target (lambda - lambda_end), located the same way.  A sign
+change over an accepted step is located by the Illinois variant of regula falsi
+on the step length sigma in (0, h), each evaluation re-taking the step from its
+start with length sigma (same integrator, same Newton projection), so the
+located state is as accurate as the path itself.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+from ncstab.operators.indicators import det_K, flutter_discriminant, hill_eigenvalue
+from ncstab.paths.programme import EVENTS
+from ncstab.paths.tangent_field import StageArrays, control_matrix
+
+__all__ = ["INDICATOR_EVENTS", "TARGET_COLUMN", "indicator_values", "locate_sign_changes"]
+
+#: Event name of every indicator column (two columns for the two secondary gaps).
+INDICATOR_EVENTS = (
+    "limit_point",
+    "hill_loss",
+    "controllability_loss",
+    "flutter_onset",
+    "secondary_contact",
+    "secondary_contact",
+    "turning_point",
+    "stage_target",
+)
+#: Column of the stage-target indicator.
+TARGET_COLUMN = len(INDICATOR_EVENTS) - 1
+assert set(INDICATOR_EVENTS[:-1]) == set(EVENTS)
+
+
+def indicator_values(
+    stiffness: np.ndarray,
+    gaps: np.ndarray,
+    stage: StageArrays,
+    lam: np.ndarray,
+    dlam: np.ndarray,
+) -> np.ndarray:
+    """All indicators at a batch of states, ``(B, len(INDICATOR_EVENTS))``.
+
+    Parameters
+    ----------
+    stiffness
+        K, ``(B, n, n)``.
+    gaps
+        Secondary-contact gaps, ``(B, 2)``.
+    stage
+        The cases' stage arrays.
+    lam, dlam
+        Driven parameter and its oriented rate along the path, ``(B,)``.
+    """
+    control = control_matrix(stiffness, stage.force_controlled)
+    target = (lam - stage.lam_end) * stage.target_sign
+    return np.column_stack(
+        [
+            det_K(stiffness),
+            hill_eigenvalue(stiffness),
+            det_K(control),
+            flutter_discriminant(stiffness),
+            gaps[:, 0],
+            gaps[:, 1],
+            dlam,
+            target,
+        ]
+    )
+
+
+def locate_sign_changes(
+    evaluate: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]],
+    h: np.ndarray,
+    phi0: np.ndarray,
+    phi1: np.ndarray,
+    tol: float,
+    max_iter: int = 200,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Locate roots of phi(sigma) on (0, h) for a batch, by Illinois regula falsi.
+
+    Parameters
+    ----------
+    evaluate
+        ``(index, sigma) -> (phi, payload)``: re-takes the step of cases
+        ``index`` with lengths ``sigma`` and returns the indicator and the
+        state there (``payload``, shape ``(len(index), ...)``).
+    h
+        Step lengths with ``phi0 * phi1 < 0``, ``(B,)``.
+    phi0, phi1
+        Indicator at sigma = 0 and sigma = h.
+    tol
+        Stop when the bracket is narrower than ``tol`` (or phi is exactly 0).
+
+    Returns
+    -------
+    (sigma, lower, upper, phi, payload)
+        Root estimate, final bracket, indicator and payload at the root estimate.
+    """
+    size = h.shape[0]
+    lower = np.zeros(size)
+    upper = h.astype(float).copy()
+    f_lower = phi0.astype(float).copy()
+    f_upper = phi1.astype(float).copy()
+    side = np.zeros(size, dtype=int)
+    sigma = np.full(size, np.nan)
+    phi = np.full(size, np.nan)
+    payload = None
+    done = np.zeros(size, dtype=bool)
+    last_width = upper - lower
+    for iteration in range(max_iter):
+        width = upper - lower
+        with np.errstate(divide="ignore", invalid="ignore"):
+            candidate = (lower * f_upper - upper * f_lower) / (f_upper - f_lower)
+        bisect = ~np.isfinite(candidate) | (candidate <= lower) | (candidate >= upper)
+        if iteration % 5 == 4:  # safeguard: bisect where the bracket stalls
+            bisect |= width > 0.5 * last_width
+            last_width = width.copy()
+        candidate = np.where(bisect, 0.5 * (lower + upper), candidate)
+        active = np.flatnonzero(~done)
+        values, state = evaluate(active, candidate[active])
+        if payload is None:
+            payload = np.full((size,) + state.shape[1:], np.nan)
+        payload[active] = state
+        sigma[active] = candidate[active]
+        phi[active] = values
+        f_c = np.full(size, np.nan)
+        f_c[active] = values
+        a_side = active[np.sign(values) == np.sign(f_lower[active])]
+        b_side = active[np.sign(values) == np.sign(f_upper[active])]
+        exact = active[(values == 0) | ~np.isfinite(values)]
+        # Illinois: halve the retained end's value when the same side moves twice.
+        halve_upper = a_side[side[a_side] == 1]
+        f_upper[halve_upper] *= 0.5
+        lower[a_side], f_lower[a_side], side[a_side] = candidate[a_side], f_c[a_side], 1
+        halve_lower = b_side[side[b_side] == -1]
+        f_lower[halve_lower] *= 0.5
+        upper[b_side], f_upper[b_side], side[b_side] = candidate[b_side], f_c[b_side], -1
+        lower[exact] = upper[exact] = candidate[exact]
+        width = upper - lower
+        done[active] |= width[active] <= tol
+        done[exact] = True
+        if done.all():
+            break
+    assert payload is not None
+    return sigma, lower, upper, phi, payload

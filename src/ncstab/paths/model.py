@@ -1,0 +1,137 @@
+"""A batch of cases of one law on one system: forces, tangents, internal rates.
+
+Every array has a leading case axis of length B; parameters are arrays of
+shape (B,).  The engine never loops over cases: it evaluates a ``CaseBatch`` (or
+a subset taken with :meth:`CaseBatch.take`) on whole arrays.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ncstab.laws.registry import Law
+from ncstab.operators.tangent import tangent_operator_at_contact_state
+from ncstab.symbolic.compile import CompiledLaw, compile_law
+from ncstab.systems.protocol import DiscreteSystem
+
+__all__ = ["CaseBatch", "Evaluation"]
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """Everything the engine needs at a batch of states.
+
+    Attributes
+    ----------
+    q
+        Contact variables (l, alpha), ``(B, n_c, 2)``.
+    normal, tangential
+        Contact forces N, T, ``(B, n_c)``.
+    forces
+        Generalized forces F, ``(B, n)``.
+    stiffness
+        Tangent operator K, ``(B, n, n)``.
+    """
+
+    q: np.ndarray
+    normal: np.ndarray
+    tangential: np.ndarray
+    forces: np.ndarray
+    stiffness: np.ndarray
+
+
+def _take_parameters(parameters: dict[str, np.ndarray], index: np.ndarray) -> dict[str, np.ndarray]:
+    return {k: (v[index] if np.ndim(v) else v) for k, v in parameters.items()}
+
+
+@dataclass(frozen=True)
+class CaseBatch:
+    """B cases of one law on one system.
+
+    Attributes
+    ----------
+    system
+        A system whose parameters have shape (B,) (or are scalars).
+    law
+        A law whose parameters have shape (B,) (or are scalars).
+    kappa
+        Stiffness ratio of the secondary-contact springs, ``(B,)``.
+    activate_secondary
+        Whether the secondary-contact springs act (``"activate"`` mode).
+    """
+
+    system: DiscreteSystem
+    law: Law
+    kappa: np.ndarray
+    activate_secondary: bool
+
+    @property
+    def compiled(self) -> CompiledLaw:
+        return compile_law(self.law.definition)
+
+    @property
+    def n_dof(self) -> int:
+        return self.system.n_dof
+
+    @property
+    def n_internal(self) -> int:
+        """Internal variables per case: T per contact for a rate-form law, else 0."""
+        return 0 if self.law.has_total_form else self.system.n_contacts
+
+    @property
+    def size(self) -> int:
+        shapes = [np.shape(v) for v in self.law.parameters.values()]
+        shapes += [np.shape(v) for v in self.system.parameters.values()] + [np.shape(self.kappa)]
+        return int(np.prod(np.broadcast_shapes(*shapes)))
+
+    def take(self, index: np.ndarray) -> "CaseBatch":
+        """The sub-batch of cases ``index`` (integer array)."""
+        law = Law(self.law.definition, _take_parameters(dict(self.law.parameters), index))
+        system_parameters = _take_parameters(dict(self.system.parameters), index)
+        system = type(self.system)(**system_parameters)
+        kappa = self.kappa[index] if np.ndim(self.kappa) else self.kappa
+        return CaseBatch(system, law, kappa, self.activate_secondary)
+
+    def contact_state(self, u: np.ndarray, internal: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(q, N, T) at displacements ``u`` (B, n) and internal variables (B, n_internal)."""
+        q = self.system.contact_variables(u)
+        compiled = self.compiled
+        contacts = range(self.system.n_contacts)
+        normal = np.stack([compiled.normal_force(self.law, q[:, c, 0], q[:, c, 1]) for c in contacts], -1)
+        if self.law.has_total_form:
+            tangential = np.stack(
+                [compiled.tangential_force(self.law, q[:, c, 0], q[:, c, 1]) for c in contacts], -1
+            )
+        else:
+            tangential = internal
+        return q, normal, tangential
+
+    def evaluate(self, u: np.ndarray, internal: np.ndarray, with_stiffness: bool = True) -> Evaluation:
+        """Forces (seed Eq. 4) and tangent operator (Eq. 30-34) at a batch of states."""
+        q, normal, tangential = self.contact_state(u, internal)
+        forces = self.system.generalized_forces(q, normal, tangential)
+        stiffness = np.empty(forces.shape + (self.n_dof,))
+        if with_stiffness:
+            stiffness = tangent_operator_at_contact_state(self.system, self.law, q, normal, tangential)
+        if self.activate_secondary:
+            forces = forces + self.system.secondary_forces(u, self.kappa)
+            if with_stiffness:
+                stiffness = stiffness + self.system.secondary_stiffness(u, self.kappa)
+        return Evaluation(q, normal, tangential, forces, stiffness)
+
+    def internal_rate(self, evaluation: Evaluation, du: np.ndarray) -> np.ndarray:
+        """d(internal)/ds along du/ds: dT = C_Tl dl + C_Ta dalpha (seed Eq. 13), (B, n_c)."""
+        if self.n_internal == 0:
+            return np.zeros(du.shape[:-1] + (0,))
+        q = evaluation.q
+        jacobian = self.system.contact_jacobian(q)  # (B, n_c, 2, n)
+        dq = np.einsum("bckn,bn->bck", jacobian, du)
+        rates = []
+        for c in range(self.system.n_contacts):
+            rate = self.compiled.rate_matrix(
+                self.law, q[:, c, 0], q[:, c, 1], evaluation.normal[:, c], evaluation.tangential[:, c]
+            )
+            rates.append(rate[:, 1, 0] * dq[:, c, 0] + rate[:, 1, 1] * dq[:, c, 1])
+        return np.stack(rates, axis=-1)

@@ -1,0 +1,94 @@
+"""Options of the path engine (a frozen dataclass: change with dataclasses.replace)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = ["PathOptions", "SystemSpec", "SECONDARY_CONTACT_MODES", "NORMAL_MODES"]
+
+SECONDARY_CONTACT_MODES = ("activate", "ignore", "stop")
+NORMAL_MODES = ("deformable", "rigid")
+
+
+@dataclass(frozen=True)
+class PathOptions:
+    """Tolerances, step bounds and limits of :func:`ncstab.follow`.
+
+    Attributes
+    ----------
+    rtol, atol
+        Relative and absolute local error tolerances of the embedded
+        Dormand--Prince 8(5,3) integrator (per step, on the state (u, lambda,
+        internal variables, work)).
+    newton_tol
+        Residual (max norm) at which the Newton projection onto the equilibrium
+        manifold stops, for laws with a total form.
+    newton_max_iter
+        Newton iterations before a step is rejected and retried smaller.
+    initial_step, min_step, max_step
+        Arclength step bounds.  ``max_step`` also bounds how far apart two
+        stored states can be (figure resolution, event detection).
+    max_steps
+        Accepted steps per case over the whole programme before the case fails
+        with ``failed:max_steps``.
+    event_tol
+        Width of the arclength bracket within which events are located.
+    """
+
+    rtol: float = 1e-10
+    atol: float = 1e-12
+    newton_tol: float = 1e-12
+    newton_max_iter: int = 12
+    initial_step: float = 1e-3
+    min_step: float = 1e-12
+    max_step: float = 0.02
+    max_steps: int = 20_000
+    event_tol: float = 1e-10
+
+    def __post_init__(self) -> None:
+        for name in ("rtol", "atol", "newton_tol", "initial_step", "min_step", "max_step", "event_tol"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and value > 0 and value < float("inf")):
+                raise ValueError(f"PathOptions.{name} must be a positive finite number, got {value!r}")
+        for name in ("newton_max_iter", "max_steps"):
+            value = getattr(self, name)
+            if not (isinstance(value, int) and value >= 1):
+                raise ValueError(f"PathOptions.{name} must be a positive integer, got {value!r}")
+        if self.min_step > self.max_step:
+            raise ValueError("PathOptions.min_step must not exceed max_step")
+
+
+@dataclass(frozen=True)
+class SystemSpec:
+    """Which system to follow and how its contacts behave.
+
+    Attributes
+    ----------
+    name
+        System name in :data:`ncstab.systems.SYSTEMS` (``"diamond"``).
+    secondary_contacts
+        ``"activate"`` (default): a frictionless unilateral normal spring of
+        stiffness ratio ``kappa`` acts between non-neighbour grains once they
+        touch; ``"ignore"``: the event is recorded only; ``"stop"``: the stage
+        ends there.
+    normal
+        ``"deformable"`` (default) or ``"rigid"``: the pure-shear limit of the
+        seed (k_n -> infinity, Eq. 60-68).
+    """
+
+    name: str = "diamond"
+    secondary_contacts: str = "activate"
+    normal: str = "deformable"
+
+    def __post_init__(self) -> None:
+        from ncstab.systems import SYSTEMS
+
+        if self.name not in SYSTEMS:
+            raise ValueError(f"unknown system {self.name!r}; systems are: {', '.join(SYSTEMS)}")
+        if self.secondary_contacts not in SECONDARY_CONTACT_MODES:
+            raise ValueError(
+                f"secondary_contacts = {self.secondary_contacts!r} is not allowed; "
+                f"allowed: {', '.join(SECONDARY_CONTACT_MODES)}"
+            )
+        if self.normal not in NORMAL_MODES:
+            raise ValueError(f"normal = {self.normal!r} is not allowed; allowed: {', '.join(NORMAL_MODES)}")

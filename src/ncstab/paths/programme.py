@@ -1,0 +1,271 @@
+"""Loading programmes: lists of stages that prescribe, for every dof, u_i or F_i.
+
+A *linear* stage holds some prescribed quantities and drives exactly one to a
+target; a *cycle* stage drives both displacements around a circle in the
+(Delta_1*, Delta_2*) plane through the current state (ARCHITECTURE.md, "Study
+file").  Values are numbers, names of parameters, or ``"current"`` (held at the
+value the quantity has when the stage starts).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Mapping, Sequence
+
+__all__ = [
+    "EVENTS",
+    "CURRENT",
+    "ProgrammeError",
+    "Stage",
+    "CycleStage",
+    "LoadingProgramme",
+    "parse_programme",
+]
+
+#: Events the engine detects and locates (see ``ncstab.paths.events``).
+EVENTS = (
+    "limit_point",
+    "hill_loss",
+    "controllability_loss",
+    "flutter_onset",
+    "secondary_contact",
+    "turning_point",
+)
+
+#: Held value meaning "the value the quantity has when the stage starts".
+CURRENT = "current"
+
+Value = float | str
+
+
+class ProgrammeError(ValueError):
+    """A loading programme that cannot be followed; names the stage and the field.
+
+    Attributes
+    ----------
+    stage
+        1-based stage number (as a user counts ``[[loading]]`` tables), or
+        ``None`` for the programme as a whole.
+    field
+        The offending field (``"hold.F2"``, ``"drive"``, ``"stop_at"``...).
+    """
+
+    def __init__(self, stage: int | None, field_name: str, message: str) -> None:
+        self.stage = stage
+        self.field = field_name
+        where = f"loading stage {stage}" if stage is not None else "loading programme"
+        super().__init__(f"{where}, field {field_name!r}: {message}")
+
+
+@dataclass(frozen=True)
+class Stage:
+    """A linear stage: every dof held or driven through u_i or F_i.
+
+    Attributes
+    ----------
+    hold
+        Prescribed quantities kept constant, e.g. ``{"F2": "current"}``.
+    drive
+        Exactly one prescribed quantity and its target, e.g. ``{"D1": 0.6}``.
+    stop_at
+        Events that end the stage (and the case) when located.
+    """
+
+    hold: Mapping[str, Value] = field(default_factory=dict)
+    drive: Mapping[str, Value] = field(default_factory=dict)
+    stop_at: tuple[str, ...] = ()
+
+    @property
+    def driven(self) -> tuple[str, Value]:
+        ((name, target),) = self.drive.items()
+        return name, target
+
+    def controls(self) -> dict[str, Value]:
+        return {**self.hold, **self.drive}
+
+
+@dataclass(frozen=True)
+class CycleStage:
+    """Both displacements driven around a circle through the current state.
+
+    Attributes
+    ----------
+    center
+        Centre of the circle in the (Delta_1*, Delta_2*) plane.
+    turns
+        Number of full turns (a positive integer).
+    direction
+        +1 counterclockwise, -1 clockwise.
+    stop_at
+        Events that end the stage when located.
+    """
+
+    center: tuple[Value, ...] = (0.0, 0.0)
+    turns: int = 1
+    direction: int = 1
+    stop_at: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class LoadingProgramme:
+    """An ordered list of stages, validated against a system's dofs."""
+
+    stages: tuple[Stage | CycleStage, ...]
+
+    def __len__(self) -> int:
+        return len(self.stages)
+
+    def parameter_references(self) -> set[str]:
+        """Names of parameters that held or driven values refer to."""
+        names: set[str] = set()
+        for stage in self.stages:
+            values: list[Any] = (
+                list(stage.controls().values()) if isinstance(stage, Stage) else list(stage.center)
+            )
+            names |= {v for v in values if isinstance(v, str) and v != CURRENT}
+        return names
+
+
+def _check_value(stage: int, field_name: str, value: Any, allow_current: bool) -> Value:
+    if isinstance(value, bool):
+        raise ProgrammeError(stage, field_name, f"expected a number or a parameter name, got {value!r}")
+    if isinstance(value, (int, float)):
+        if not math.isfinite(value):
+            raise ProgrammeError(stage, field_name, f"value {value!r} is not finite")
+        return float(value)
+    if isinstance(value, str):
+        if value == CURRENT and not allow_current:
+            raise ProgrammeError(stage, field_name, "a driven target cannot be 'current'")
+        if not value.isidentifier() and value != CURRENT:
+            raise ProgrammeError(
+                stage, field_name, f"{value!r} is neither a number, 'current', nor a parameter name"
+            )
+        return value
+    raise ProgrammeError(stage, field_name, f"expected a number or a parameter name, got {value!r}")
+
+
+def _check_stop_at(stage: int, stop_at: Any) -> tuple[str, ...]:
+    if stop_at is None:
+        return ()
+    if isinstance(stop_at, str):
+        stop_at = [stop_at]
+    if not isinstance(stop_at, Sequence):
+        raise ProgrammeError(stage, "stop_at", f"expected a list of event names, got {stop_at!r}")
+    for name in stop_at:
+        if name not in EVENTS:
+            raise ProgrammeError(
+                stage, "stop_at", f"unknown event {name!r}; events are: {', '.join(EVENTS)}"
+            )
+    return tuple(stop_at)
+
+
+def _parse_linear(number: int, raw: Mapping[str, Any], dofs: Sequence[str], forces: Sequence[str]) -> Stage:
+    quantities = list(dofs) + list(forces)
+    hold = raw.get("hold", {}) or {}
+    drive = raw.get("drive", {}) or {}
+    for label, table in (("hold", hold), ("drive", drive)):
+        if not isinstance(table, Mapping):
+            raise ProgrammeError(number, label, f"expected a table of quantity = value, got {table!r}")
+        for name in table:
+            if name not in quantities:
+                raise ProgrammeError(
+                    number, f"{label}.{name}",
+                    f"unknown quantity {name!r}; quantities are: {', '.join(quantities)}",
+                )
+    if len(drive) == 0:
+        raise ProgrammeError(number, "drive", "the stage drives nothing: give exactly one quantity and its target")
+    if len(drive) > 1:
+        raise ProgrammeError(
+            number, "drive", f"the stage drives {len(drive)} quantities ({', '.join(drive)}); drive exactly one"
+        )
+    controlled = {**{k: "hold" for k in hold}, **{k: "drive" for k in drive}}
+    both = set(hold) & set(drive)
+    if both:
+        name = sorted(both)[0]
+        raise ProgrammeError(number, f"drive.{name}", f"{name} is both held and driven")
+    for dof, force in zip(dofs, forces):
+        if dof in controlled and force in controlled:
+            raise ProgrammeError(
+                number, f"{controlled[force]}.{force}",
+                f"dof {dof}/{force} is controlled twice: prescribe either {dof} or {force}",
+            )
+        if dof not in controlled and force not in controlled:
+            raise ProgrammeError(
+                number, "hold", f"dof {dof}/{force} is not controlled: hold or drive {dof} or {force}"
+            )
+    hold_values = {k: _check_value(number, f"hold.{k}", v, True) for k, v in hold.items()}
+    drive_values = {k: _check_value(number, f"drive.{k}", v, False) for k, v in drive.items()}
+    return Stage(hold_values, drive_values, _check_stop_at(number, raw.get("stop_at")))
+
+
+def _parse_cycle(number: int, raw: Mapping[str, Any], dofs: Sequence[str]) -> CycleStage:
+    cycle = raw["cycle"]
+    if not isinstance(cycle, Mapping):
+        raise ProgrammeError(number, "cycle", f"expected a table (center, turns, direction), got {cycle!r}")
+    extra = set(raw) - {"cycle", "stop_at"}
+    if extra:
+        raise ProgrammeError(number, sorted(extra)[0], "a cycle stage takes only 'cycle' and 'stop_at'")
+    unknown = set(cycle) - {"center", "turns", "direction"}
+    if unknown:
+        raise ProgrammeError(
+            number, f"cycle.{sorted(unknown)[0]}", "unknown key; a cycle takes center, turns, direction"
+        )
+    if len(dofs) != 2:
+        raise ProgrammeError(number, "cycle", "cycle stages need a system with two displacements")
+    center = cycle.get("center", [0.0, 0.0])
+    if not isinstance(center, Sequence) or isinstance(center, str) or len(center) != 2:
+        raise ProgrammeError(number, "cycle.center", f"expected two numbers [D1, D2], got {center!r}")
+    center_values = tuple(_check_value(number, "cycle.center", c, False) for c in center)
+    turns = cycle.get("turns", 1)
+    if isinstance(turns, bool) or not isinstance(turns, int) or turns < 1:
+        raise ProgrammeError(number, "cycle.turns", f"expected a positive whole number, got {turns!r}")
+    direction = cycle.get("direction", 1)
+    if isinstance(direction, bool) or direction not in (1, -1):
+        raise ProgrammeError(number, "cycle.direction", f"expected 1 (counterclockwise) or -1, got {direction!r}")
+    return CycleStage(center_values, turns, int(direction), _check_stop_at(number, raw.get("stop_at")))
+
+
+def parse_programme(
+    stages: Sequence[Mapping[str, Any] | Stage | CycleStage],
+    dofs: Sequence[str] = ("D1", "D2"),
+    forces: Sequence[str] = ("F1", "F2"),
+) -> LoadingProgramme:
+    """Validate raw stage tables (as in a study file) into a programme.
+
+    Parameters
+    ----------
+    stages
+        Mappings with ``hold``/``drive``/``stop_at`` or ``cycle``/``stop_at``
+        (or already-built stages, re-validated).
+    dofs, forces
+        The system's displacement and force names.
+
+    Raises
+    ------
+    ProgrammeError
+        Naming the stage (1-based) and the field.
+    """
+    if isinstance(stages, (str, bytes)) or not isinstance(stages, Sequence) or len(stages) == 0:
+        raise ProgrammeError(None, "loading", "give at least one loading stage")
+    parsed: list[Stage | CycleStage] = []
+    for number, raw in enumerate(stages, start=1):
+        if isinstance(raw, Stage):
+            raw = {"hold": dict(raw.hold), "drive": dict(raw.drive), "stop_at": list(raw.stop_at)}
+        elif isinstance(raw, CycleStage):
+            raw = {
+                "cycle": {"center": list(raw.center), "turns": raw.turns, "direction": raw.direction},
+                "stop_at": list(raw.stop_at),
+            }
+        if not isinstance(raw, Mapping):
+            raise ProgrammeError(number, "loading", f"expected a table, got {raw!r}")
+        if "cycle" in raw:
+            parsed.append(_parse_cycle(number, raw, dofs))
+            continue
+        unknown = set(raw) - {"hold", "drive", "stop_at"}
+        if unknown:
+            raise ProgrammeError(
+                number, sorted(unknown)[0], "unknown key; a stage takes hold, drive, stop_at (or cycle)"
+            )
+        parsed.append(_parse_linear(number, raw, dofs, forces))
+    return LoadingProgramme(tuple(parsed))

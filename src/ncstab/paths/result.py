@@ -1,0 +1,246 @@
+"""The result of :func:`ncstab.follow`: states, statuses and events, and its Dataset."""
+
+from __future__ import annotations
+
+import datetime as _dt
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+import ncstab
+from ncstab.operators.indicators import (
+    det_K,
+    flutter_discriminant,
+    hill_eigenvalue,
+    skew_part,
+    symmetric_part,
+)
+from ncstab.paths.engine import CaseResult
+from ncstab.paths.options import PathOptions, SystemSpec
+from ncstab.paths.programme import EVENTS, LoadingProgramme, Stage
+from ncstab.paths.variables import EVENT_FIELDS, VARIABLES
+
+if TYPE_CHECKING:  # pragma: no cover
+    import xarray
+
+    from ncstab.paths.api import ParameterGrid
+
+__all__ = ["Path"]
+
+
+@dataclass(frozen=True)
+class Path:
+    """Paths of every law and every case of a sweep.
+
+    Attributes
+    ----------
+    laws
+        Law names (the first sweep dimension).
+    grid
+        The parameter grid (further sweep dimensions, in order).
+    system, programme, options
+        What was followed and how.
+    results
+        One :class:`~ncstab.paths.engine.CaseResult` per law, cases flat in C
+        order over the grid.
+    """
+
+    laws: tuple[str, ...]
+    grid: "ParameterGrid"
+    system: SystemSpec
+    programme: LoadingProgramme
+    options: PathOptions
+    results: tuple[CaseResult, ...]
+    dof_names: tuple[str, ...]
+    force_names: tuple[str, ...]
+    study_text: str = ""
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        """Sweep shape: (law, *swept parameters)."""
+        return (len(self.laws),) + self.grid.shape
+
+    @property
+    def status(self) -> np.ndarray:
+        """Per-case status, shape :attr:`shape`."""
+        return np.stack([r.status for r in self.results]).reshape(self.shape)
+
+    @property
+    def message(self) -> np.ndarray:
+        return np.stack([r.message for r in self.results]).reshape(self.shape)
+
+    @property
+    def succeeded(self) -> np.ndarray:
+        """True where a case finished or stopped at an event (did not fail)."""
+        return ~np.char.startswith(self.status.astype(str), "failed")
+
+    def case(self, law: str, **parameters: float) -> tuple[CaseResult, int]:
+        """(result of the law, flat case index) of one case, by parameter values."""
+        result = self.results[self.laws.index(law)]
+        index = []
+        for name, values in self.grid.sweep.items():
+            if name not in parameters:
+                raise KeyError(f"give a value for the swept parameter {name!r}")
+            matches = np.flatnonzero(np.isclose(values, parameters[name], rtol=0, atol=1e-12))
+            if matches.size == 0:
+                raise KeyError(f"{name} = {parameters[name]} is not in the sweep {values}")
+            index.append(int(matches[0]))
+        flat = int(np.ravel_multi_index(index, self.grid.shape)) if index else 0
+        return result, flat
+
+    def to_dataset(self) -> "xarray.Dataset":
+        """The labelled Dataset of ARCHITECTURE.md ("Dataset of a path study").
+
+        Dimensions: ``law``, the swept parameters in order, then ``step``,
+        ``dof``, ``i``, ``j``.  Paths of different lengths are NaN-padded
+        along ``step``; ``n_steps`` gives each case's length.
+        """
+        import xarray as xr
+
+        sweep_dims = ["law", *self.grid.sweep]
+        shape = self.shape
+        n = len(self.dof_names)
+        length = max(int(r.n_steps.max()) if r.n_steps.size else 0 for r in self.results)
+
+        def stacked(key: str) -> np.ndarray:
+            arrays = []
+            for r in self.results:
+                a = r.steps[key]
+                pad = length - a.shape[1]
+                if pad:
+                    fill = -1 if a.dtype.kind == "i" else np.nan
+                    a = np.concatenate([a, np.full((a.shape[0], pad) + a.shape[2:], fill, dtype=a.dtype)], 1)
+                arrays.append(a)
+            array = np.stack(arrays)
+            return array.reshape(shape + array.shape[2:])
+
+        K = stacked("K")
+        du = stacked("du")
+        dF = np.einsum("...ij,...j->...i", K, du)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            d2w = np.einsum("...i,...i->...", dF, du) / (np.linalg.norm(dF, axis=-1) * np.linalg.norm(du, axis=-1))
+        stage = stacked("stage")
+        mixed = self._mixed_control(K, stage)
+
+        step_dims = [*sweep_dims, "step"]
+        data = {
+            "u": (step_dims + ["dof"], stacked("u")),
+            "F": (step_dims + ["dof"], stacked("F")),
+            "alpha": (step_dims, stacked("alpha")),
+            "l": (step_dims, stacked("l")),
+            "N": (step_dims, stacked("N")),
+            "T": (step_dims, stacked("T")),
+            "s": (step_dims, stacked("s")),
+            "stage": (step_dims, stage.astype(np.int32)),
+            "lam": (step_dims, stacked("lam")),
+            "work": (step_dims, stacked("work")),
+            "K": (step_dims + ["i", "j"], K),
+            "K_sym": (step_dims + ["i", "j"], symmetric_part(K)),
+            "K_skew": (step_dims + ["i", "j"], skew_part(K)),
+            "det_K": (step_dims, det_K(K)),
+            "hill": (step_dims, hill_eigenvalue(K)),
+            "d2W": (step_dims, d2w),
+            "flutter": (step_dims, flutter_discriminant(K)),
+            "mixed_control": (step_dims, mixed),
+            "n_steps": (sweep_dims, np.stack([r.n_steps for r in self.results]).reshape(shape).astype(np.int32)),
+            "status": (sweep_dims, self.status.astype(str)),
+            "message": (sweep_dims, self.message.astype(str)),
+            "accepted_steps": (
+                sweep_dims,
+                np.stack([r.counters["accepted"] for r in self.results]).reshape(shape).astype(np.int32),
+            ),
+            "rejected_steps": (
+                sweep_dims,
+                np.stack([r.counters["rejected"] for r in self.results]).reshape(shape).astype(np.int32),
+            ),
+        }
+        for name, (dims, values) in list(data.items()):
+            units, long_name, description = VARIABLES[name]
+            attrs = {"long_name": long_name, "description": description}
+            if units:
+                attrs["units"] = units
+            data[name] = (dims, values, attrs)
+        for event in EVENTS:
+            for suffix, (units, long_name, description) in EVENT_FIELDS.items():
+                values = np.stack([r.events[event][suffix] for r in self.results])
+                values = values.reshape(shape + values.shape[2:])
+                dims = sweep_dims + {2: ["dof"], 3: ["i", "j"]}.get(values.ndim - len(shape) + 1, [])
+                if suffix == "stage":
+                    values = values.astype(np.int32)
+                data[f"{event}_{suffix}"] = (
+                    dims,
+                    values,
+                    {
+                        "units": units,
+                        "long_name": long_name.format(event=event),
+                        "description": description.format(event=event),
+                    },
+                )
+        classes = self._law_classes()
+        coords = {
+            "law": ("law", np.array(self.laws, dtype=str), {"long_name": "contact interaction law"}),
+            "law_class": ("law", np.array([classes[l] for l in self.laws], dtype=str), {
+                "long_name": "computed class of the law",
+                "description": "hyperelastic, weakly hypoelastic or strongly hypoelastic (ncstab.symbolic.classify)",
+            }),
+            "step": ("step", np.arange(length, dtype=np.int32), {"long_name": "stored state index"}),
+            "dof": ("dof", np.arange(1, n + 1, dtype=np.int32), {
+                "long_name": "degree of freedom",
+                "description": ", ".join(f"{i + 1}: {d}/{f}" for i, (d, f) in enumerate(zip(self.dof_names, self.force_names))),
+            }),
+            "i": ("i", np.arange(1, n + 1, dtype=np.int32), {"long_name": "matrix row (dof)"}),
+            "j": ("j", np.arange(1, n + 1, dtype=np.int32), {"long_name": "matrix column (dof)"}),
+        }
+        for name, values in self.grid.sweep.items():
+            coords[name] = (name, values, _parameter_attrs(name))
+        attrs = {
+            "Conventions": "CF-1.10",
+            "title": "ncstab path study",
+            "ncstab_version": ncstab.__version__,
+            "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+            "study": self.study_text,
+            "system": self.system.name,
+            "secondary_contacts": self.system.secondary_contacts,
+            "normal": self.system.normal,
+            "law_class": "; ".join(f"{l}: {classes[l]}" for l in self.laws),
+            "source": "Challamel, Nicot, Wautier, Darve & Lerbet (2022), J. Eng. Mech. 148(9) 04022053",
+        }
+        for name, value in self.grid.fixed.items():
+            attrs[f"parameter_{name}"] = value
+        dataset = xr.Dataset({k: v for k, v in data.items()}, coords=coords, attrs=attrs)
+        return dataset
+
+    def _law_classes(self) -> dict[str, str]:
+        from ncstab.laws.registry import law_definition
+        from ncstab.symbolic.classification import classify
+
+        return {name: classify(law_definition(name)).kind for name in self.laws}
+
+    def _mixed_control(self, K: np.ndarray, stage: np.ndarray) -> np.ndarray:
+        """det K_SS per stored state, with S the force-controlled dofs of its stage."""
+        from ncstab.operators.indicators import mixed_control_determinant
+
+        out = np.full(stage.shape, np.nan)
+        for k, st in enumerate(self.programme.stages):
+            where = stage == k
+            if not where.any():
+                continue
+            if isinstance(st, Stage):
+                controlled = [i for i, f in enumerate(self.force_names) if f in st.controls()]
+            else:
+                controlled = []
+            out[where] = mixed_control_determinant(K[where], controlled)
+        return out
+
+
+def _parameter_attrs(name: str) -> dict[str, str]:
+    from ncstab.laws.definition import ALPHA0_SPEC, GAMMA_SPEC
+
+    known = {
+        "gamma": ("1", "stiffness ratio gamma", GAMMA_SPEC.description),
+        "alpha0": ("rad", "initial orientation alpha0", ALPHA0_SPEC.description),
+        "kappa": ("1", "secondary contact stiffness ratio kappa", "stiffness of the secondary-contact springs / k_n"),
+    }
+    units, long_name, description = known.get(name, ("1", name, f"study parameter {name}"))
+    return {"units": units, "long_name": long_name, "description": description}

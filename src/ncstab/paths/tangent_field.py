@@ -1,0 +1,159 @@
+"""The tangent of a loading path: null space of the constrained rate system.
+
+Along a stage every dof i has either its displacement or its force prescribed:
+``P du + Q dF = g'(lambda) dlambda`` with P, Q complementary diagonal selections
+(Q = force-controlled) and g the stage's control path (a straight line for a
+linear stage, a circle for a cycle stage).  With dF = K du this is
+``M du = g' dlambda`` where M = P + Q K is the *control matrix* (rows of K for
+force-controlled dofs, identity rows otherwise; det M = det K_SS is the
+mixed-control determinant).  Its one-dimensional null space is spanned by the
+cofactor vector
+
+    (du, dlambda) = (adj(M) g', det M),
+
+smooth in the state and defined through turning points of lambda (where det M
+changes sign, lambda simply turns back): pseudo-arclength needs nothing else.
+The tangent is normalised in (u, F, lambda) and oriented once per stage.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from ncstab.operators.indicators import det_K
+
+__all__ = ["StageArrays", "adjugate", "control_matrix", "path_tangent"]
+
+
+def adjugate(matrix: np.ndarray) -> np.ndarray:
+    """Adjugate (transposed cofactor matrix) of ``(..., n, n)`` matrices.
+
+    ``matrix @ adjugate(matrix) = det(matrix) I`` holds even where the matrix
+    is singular.  Closed form for n = 1, 2; cofactors otherwise.
+    """
+    n = matrix.shape[-1]
+    if n == 1:
+        return np.ones_like(matrix)
+    if n == 2:
+        out = np.empty_like(matrix)
+        out[..., 0, 0] = matrix[..., 1, 1]
+        out[..., 1, 1] = matrix[..., 0, 0]
+        out[..., 0, 1] = -matrix[..., 0, 1]
+        out[..., 1, 0] = -matrix[..., 1, 0]
+        return out
+    cofactors = np.empty_like(matrix)
+    for i in range(n):
+        for j in range(n):
+            minor = np.delete(np.delete(matrix, i, axis=-2), j, axis=-1)
+            cofactors[..., i, j] = (-1) ** (i + j) * np.linalg.det(minor)
+    return np.swapaxes(cofactors, -1, -2)
+
+
+@dataclass
+class StageArrays:
+    """Per-case description of the current stage (all arrays with leading B).
+
+    Attributes
+    ----------
+    force_controlled
+        ``(B, n)`` bool: dof i prescribed through F_i.
+    offset, slope
+        ``(B, n)``: for a linear stage, prescribed values = offset + slope lambda.
+    is_cycle
+        ``(B,)`` bool.
+    center, radius, theta0, turn_direction
+        Circle of a cycle stage: u = center + radius (cos, sin)(theta0 + dir lambda).
+    lam_end
+        ``(B,)`` target of lambda.
+    target_sign
+        ``(B,)`` +1 if lambda increases toward its target, -1 otherwise.
+    orientation
+        ``(B,)`` sign applied to the cofactor tangent, fixed at stage entry.
+    """
+
+    force_controlled: np.ndarray
+    offset: np.ndarray
+    slope: np.ndarray
+    is_cycle: np.ndarray
+    center: np.ndarray
+    radius: np.ndarray
+    theta0: np.ndarray
+    turn_direction: np.ndarray
+    lam_end: np.ndarray
+    target_sign: np.ndarray
+    orientation: np.ndarray
+
+    @classmethod
+    def empty(cls, size: int, n: int) -> "StageArrays":
+        return cls(
+            force_controlled=np.zeros((size, n), dtype=bool),
+            offset=np.zeros((size, n)),
+            slope=np.zeros((size, n)),
+            is_cycle=np.zeros(size, dtype=bool),
+            center=np.zeros((size, n)),
+            radius=np.zeros(size),
+            theta0=np.zeros(size),
+            turn_direction=np.ones(size),
+            lam_end=np.zeros(size),
+            target_sign=np.ones(size),
+            orientation=np.ones(size),
+        )
+
+    def take(self, index: np.ndarray) -> "StageArrays":
+        return StageArrays(**{f.name: getattr(self, f.name)[index] for f in fields(self)})
+
+    def put(self, index: np.ndarray, other: "StageArrays") -> None:
+        for f in fields(self):
+            getattr(self, f.name)[index] = getattr(other, f.name)
+
+    def control_path(self, lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """g(lambda) and g'(lambda), each ``(B, n)``."""
+        angle = self.theta0 + self.turn_direction * lam
+        unit = np.stack([np.cos(angle), np.sin(angle)], axis=-1) if self.center.shape[-1] == 2 else None
+        linear_g = self.offset + self.slope * lam[:, None]
+        if unit is None:
+            return linear_g, self.slope
+        circle_g = self.center + self.radius[:, None] * unit
+        circle_dg = (self.radius * self.turn_direction)[:, None] * np.stack([-unit[:, 1], unit[:, 0]], -1)
+        cyc = self.is_cycle[:, None]
+        return np.where(cyc, circle_g, linear_g), np.where(cyc, circle_dg, self.slope)
+
+    def residual(self, u: np.ndarray, forces: np.ndarray, lam: np.ndarray) -> np.ndarray:
+        """Control residual P u + Q F - g(lambda), ``(B, n)``."""
+        g, _ = self.control_path(lam)
+        return np.where(self.force_controlled, forces, u) - g
+
+
+def control_matrix(stiffness: np.ndarray, force_controlled: np.ndarray) -> np.ndarray:
+    """M = P + Q K: rows of K for force-controlled dofs, identity rows otherwise."""
+    n = stiffness.shape[-1]
+    return np.where(force_controlled[..., :, None], stiffness, np.eye(n))
+
+
+def path_tangent(
+    stiffness: np.ndarray, stage: StageArrays, lam: np.ndarray, oriented: bool = True
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Unit tangent (du/ds, dlambda/ds) of the path and det M.
+
+    Normalised so that |du|^2 + |dF|^2 + dlambda^2 = 1 with dF = K du.
+
+    Returns
+    -------
+    (du, dlam, det_m)
+        ``(B, n)``, ``(B,)``, ``(B,)``; NaN where the null space is not
+        one-dimensional (adj(M) g' = 0 and det M = 0).
+    """
+    _, dg = stage.control_path(lam)
+    matrix = control_matrix(stiffness, stage.force_controlled)
+    det_m = det_K(matrix)
+    du = np.einsum("bij,bj->bi", adjugate(matrix), dg)
+    dlam = det_m
+    df = np.einsum("bij,bj->bi", stiffness, du)
+    norm = np.sqrt(np.sum(du**2, -1) + np.sum(df**2, -1) + dlam**2)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        scale = np.where(norm > 0, 1.0 / norm, np.nan)
+    if oriented:
+        scale = scale * stage.orientation
+    return du * scale[:, None], dlam * scale, det_m

@@ -1,0 +1,51 @@
+"""Names, units and descriptions of every variable in a path Dataset.
+
+One table, used by :meth:`ncstab.paths.Path.to_dataset` and by the docs page
+on archive variables.  All quantities are dimensionless (seed Eq. 37).
+"""
+
+from __future__ import annotations
+
+__all__ = ["VARIABLES", "EVENT_FIELDS"]
+
+#: name -> (units, long_name, description)
+VARIABLES: dict[str, tuple[str, str, str]] = {
+    "u": ("1", "generalized displacements Delta*", "Delta_i / 2R for each dof (Delta_1 vertical, Delta_2 horizontal), seed Eq. (1), (37)"),
+    "F": ("1", "generalized forces F*", "F_i / (2R k_n) conjugate to each dof, seed Eq. (4), (37)"),
+    "alpha": ("rad", "contact branch orientation alpha", "orientation of the branch joining two neighbour grain centres, from the vertical axis, seed Eq. (1)"),
+    "l": ("1", "contact branch length l*", "distance between neighbour grain centres / 2R, seed Eq. (1), (37)"),
+    "N": ("1", "normal contact force N*", "N / (2R k_n), positive in compression, seed Eq. (4)"),
+    "T": ("1", "tangential contact force T*", "T / (2R k_n), seed Eq. (4); an internal variable for strongly hypoelastic laws"),
+    "s": ("1", "arclength of the path", "pseudo-arclength in (Delta*, F*, lambda) from the start of the programme"),
+    "stage": ("1", "loading stage index", "0-based index of the loading stage a stored state belongs to; -1 past the end of a path"),
+    "lam": ("1", "driven quantity lambda", "value of the driven displacement or force of the stage (turned angle, rad, for a cycle stage)"),
+    "work": ("1", "work per contact", "int F* . dDelta* / 2 along the path (seed Eq. 5), in units of k_n (2R)^2"),
+    "K": ("1", "tangent operator K", "dF* = K dDelta*, seed Eq. (33)-(34), (38), (51); units of 2R k_n per 2R"),
+    "K_sym": ("1", "symmetric part of K", "(K + K^T)/2"),
+    "K_skew": ("1", "skew part of K", "(K - K^T)/2; zero for hyperelastic laws at equilibrium, seed Eq. (41)"),
+    "det_K": ("1", "determinant of K", "det K; vanishes at a limit point under force control (divergence), seed Eq. (36)"),
+    "hill": ("1", "smallest eigenvalue of K_sym", "Hill's condition (second-order work dF . dDelta > 0 in every direction) holds while positive"),
+    "d2W": ("1", "normalised second-order work along the path", "dF . dDelta / (|dF| |dDelta|) along the path tangent"),
+    "flutter": ("1", "flutter discriminant of K", "(tr K)^2 - 4 det K; negative when K has complex eigenvalues"),
+    "mixed_control": ("1", "mixed-control determinant", "det K_SS over the stage's force-controlled dofs S (1 under kinematic control); controllability is lost where it vanishes, seed Eq. (35)"),
+    "n_steps": ("1", "number of stored states", "stored states of each case; later steps are NaN padding"),
+    "status": ("", "case status", "finished, stopped:<event>, or failed:<reason>"),
+    "message": ("", "case status message", "what happened to the case, in words"),
+    "accepted_steps": ("1", "accepted integrator steps", "accepted arclength steps of the case"),
+    "rejected_steps": ("1", "rejected integrator steps", "steps rejected by error control or Newton projection"),
+}
+
+#: Per-event fields: suffix -> (units, long_name template, description template)
+EVENT_FIELDS: dict[str, tuple[str, str, str]] = {
+    "s": ("1", "arclength at {event}", "located arclength of the first {event} (NaN if none)"),
+    "s_lower": ("1", "lower bracket of {event}", "arclength bracket of the located {event}: lower end"),
+    "s_upper": ("1", "upper bracket of {event}", "arclength bracket of the located {event}: upper end"),
+    "stage": ("1", "stage of {event}", "0-based loading stage in which {event} was first located (-1 if none)"),
+    "u": ("1", "Delta* at {event}", "generalized displacements at the first {event}"),
+    "F": ("1", "F* at {event}", "generalized forces at the first {event}"),
+    "alpha": ("rad", "alpha at {event}", "branch orientation at the first {event}"),
+    "l": ("1", "l* at {event}", "branch length at the first {event}"),
+    "N": ("1", "N* at {event}", "normal contact force at the first {event}"),
+    "T": ("1", "T* at {event}", "tangential contact force at the first {event}"),
+    "K": ("1", "K at {event}", "tangent operator at the first {event}"),
+}
