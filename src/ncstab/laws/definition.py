@@ -210,9 +210,14 @@ class LawDefinition:
     # --- expressions with the normal overlap substituted -------------------------
     @property
     def effective_overlap(self) -> sp.Expr:
-        """delta, or its Macaulay bracket <delta> = max(delta, 0) with no tension."""
+        """delta, or its Macaulay bracket <delta> with no tension (seed Eq. 59).
+
+        The bracket is written as a Piecewise that is *closed* at delta = 0, so
+        a contact that touches without overlap (the unloaded state) has the
+        stiffness of a closed contact: its derivative is 1, not 1/2.
+        """
         if self.no_tension:
-            return sp.Max(self.normal_overlap, 0)
+            return sp.Piecewise((self.normal_overlap, self.normal_overlap >= 0), (0, True))
         return self.normal_overlap
 
     def _substitute(self, expr: sp.Expr) -> sp.Expr:

@@ -14,6 +14,8 @@ from ncstab.paths.model import CaseBatch
 from ncstab.paths.options import PathOptions, SystemSpec
 from ncstab.paths.programme import LoadingProgramme, parse_programme
 from ncstab.paths.result import Path
+from ncstab.paths.rigid_model import RigidCaseBatch
+from ncstab.systems.diamond import DiamondChain
 from ncstab.systems import SYSTEMS
 
 __all__ = ["ParameterGrid", "follow"]
@@ -83,14 +85,25 @@ def _law_batch(
     law_name: str,
     spec: SystemSpec,
     values: dict[str, np.ndarray],
-) -> CaseBatch:
+    size: int,
+) -> CaseBatch | RigidCaseBatch:
     definition = law_definition(law_name)
-    law_parameters = {p.name: values[p.name] for p in definition.parameters if p.name in values}
+    if spec.normal == "rigid":
+        alpha0 = values.get("alpha0", np.full(size, np.pi / 4))
+        law = make_law(definition, gamma=np.zeros(size), alpha0=alpha0)
+        return RigidCaseBatch(DiamondChain(alpha0=alpha0), law, spec.secondary_contacts == "activate")
+    law_parameters = {
+        p.name: values.get(p.name, np.full(size, p.default) if p.default is not None else None)
+        for p in definition.parameters
+    }
+    law_parameters = {k: v for k, v in law_parameters.items() if v is not None}
     law: Law = make_law(definition, **law_parameters)
     system_class = SYSTEMS[spec.name]
-    system_parameter_names = [p.name for p in system_class.parameter_specs]  # type: ignore[attr-defined]
-    system = system_class(**{name: values[name] for name in system_parameter_names if name in values})
-    kappa = values.get("kappa", np.full(next(iter(values.values())).size, ENGINE_PARAMETERS["kappa"]))
+    system = system_class(
+        **{name: values.get(name, np.full(size, spec_.default)) for name, spec_ in
+           ((p.name, p) for p in system_class.parameter_specs)}  # type: ignore[attr-defined]
+    )
+    kappa = values.get("kappa", np.full(size, ENGINE_PARAMETERS["kappa"]))
     if np.any(~np.isfinite(kappa) | (kappa < 0)):
         raise ValueError("parameter 'kappa' (secondary-contact stiffness ratio) must be finite and >= 0")
     return CaseBatch(system, law, np.asarray(kappa, dtype=float), spec.secondary_contacts == "activate")
@@ -140,8 +153,6 @@ def follow(
         A malformed loading programme (names the stage and the field).
     """
     spec = SystemSpec(system) if isinstance(system, str) else system
-    if spec.normal != "deformable":
-        raise NotImplementedError("normal = 'rigid' (pure-shear limit) is not available in this version")
     options = options or PathOptions()
     law_names = [laws] if isinstance(laws, str) else list(laws)
     if not law_names:
@@ -155,6 +166,14 @@ def follow(
     grid = ParameterGrid.from_mapping(parameters or {})
     known = set(ENGINE_PARAMETERS) | {p.name for p in system_class.parameter_specs}  # type: ignore[attr-defined]
     known |= set(itertools.chain.from_iterable(d.parameter_names for d in definitions))
+    if spec.normal == "rigid":
+        meaningless = sorted({"gamma", "kappa"} & set(grid.names))
+        if meaningless:
+            raise ValueError(
+                f"parameter(s) {', '.join(map(repr, meaningless))} have no meaning with normal = 'rigid' "
+                "(the pure-shear limit, seed Eq. 60-68: forces in units of 2R k_t, rigid secondary contacts)"
+            )
+        known -= {"gamma", "kappa"}
     referenced = programme.parameter_references()
     missing = sorted(referenced - set(grid.names))
     if missing:
@@ -177,7 +196,7 @@ def follow(
     results = []
     try:
         for name in law_names:
-            batch = _law_batch(name, spec, values)
+            batch = _law_batch(name, spec, values, grid.size)
             results.append(
                 follow_cases(
                     batch, programme, values, options, spec.secondary_contacts,

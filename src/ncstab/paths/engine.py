@@ -26,6 +26,7 @@ import numpy as np
 
 from ncstab.paths.events import (
     INDICATOR_EVENTS,
+    INDICATOR_GAP,
     TARGET_COLUMN,
     indicator_values,
     locate_sign_changes,
@@ -45,17 +46,29 @@ FINISHED = "finished"
 @dataclass
 class _Aux:
     evaluation: Evaluation
+    dv: np.ndarray
     du: np.ndarray
     dlam: np.ndarray
 
+    def take(self, index: np.ndarray) -> "_Aux":
+        return _Aux(self.evaluation.take(index), self.dv[index], self.du[index], self.dlam[index])
+
+    def put(self, index: np.ndarray, other: "_Aux") -> None:
+        self.evaluation.put(index, other.evaluation)
+        self.dv[index], self.du[index], self.dlam[index] = other.dv, other.du, other.dlam
+
 
 class _Layout:
-    """Column layout of the integrated state y = (u, lambda, internal, work)."""
+    """Column layout of the integrated state y = (v, lambda, internal, work).
+
+    v are the batch's state coordinates (the displacements u for a deformable
+    system).
+    """
 
     def __init__(self, n: int, n_internal: int) -> None:
         self.n = n
         self.n_internal = n_internal
-        self.u = slice(0, n)
+        self.v = slice(0, n)
         self.lam = n
         self.internal = slice(n + 1, n + 1 + n_internal)
         self.work = n + 1 + n_internal
@@ -64,21 +77,21 @@ class _Layout:
 
 def _rhs(batch: CaseBatch, stage: StageArrays, y: np.ndarray, layout: _Layout) -> tuple[np.ndarray, _Aux]:
     """dy/ds: oriented unit tangent, internal-variable rates, work rate."""
-    u, lam, internal = y[:, layout.u], y[:, layout.lam], y[:, layout.internal]
-    evaluation = batch.evaluate(u, internal)
-    du, dlam, _ = path_tangent(evaluation.stiffness, stage, lam)
-    dinternal = batch.internal_rate(evaluation, du)
+    v, lam, internal = y[:, layout.v], y[:, layout.lam], y[:, layout.internal]
+    evaluation = batch.evaluate(v, internal, stage.blocked)
+    dv, du, dlam, _ = path_tangent(evaluation.du_dv, evaluation.dF_dv, stage, lam)
+    dinternal = batch.internal_rate(evaluation, dv, stage.blocked)
     dwork = 0.5 * np.sum(evaluation.forces * du, axis=-1)
-    dy = np.concatenate([du, dlam[:, None], dinternal, dwork[:, None]], axis=-1)
-    return dy, _Aux(evaluation, du, dlam)
+    dy = np.concatenate([dv, dlam[:, None], dinternal, dwork[:, None]], axis=-1)
+    return dy, _Aux(evaluation, dv, du, dlam)
 
 
 def _project(
     batch: CaseBatch, stage: StageArrays, y: np.ndarray, layout: _Layout, options: PathOptions
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Newton projection of (u, lambda) onto equilibrium + control constraints.
+    """Newton projection of (v, lambda) onto equilibrium + control constraints.
 
-    Solves P u + Q F(u) = g(lambda) by minimum-norm Gauss--Newton corrections
+    Solves P u(v) + Q F(v) = g(lambda) by minimum-norm Gauss--Newton corrections
     (the system has one more unknown than equations).  Returns the projected
     states and a mask of the cases that converged to ``options.newton_tol``.
     """
@@ -88,10 +101,10 @@ def _project(
     for _ in range(options.newton_max_iter + 1):
         sub = batch.take(todo) if todo.size < y.shape[0] else batch
         st = stage.take(todo) if todo.size < y.shape[0] else stage
-        u, lam = y[todo, layout.u], y[todo, layout.lam]
+        v, lam = y[todo, layout.v], y[todo, layout.lam]
         with np.errstate(all="ignore"):
-            evaluation = sub.evaluate(u, y[todo, layout.internal])
-            residual = st.residual(u, evaluation.forces, lam)
+            evaluation = sub.evaluate(v, y[todo, layout.internal], st.blocked)
+            residual = st.residual(evaluation.displacements, evaluation.forces, lam)
         size = np.max(np.abs(residual), axis=-1)
         ok = size <= options.newton_tol
         converged[todo[ok]] = True
@@ -99,17 +112,16 @@ def _project(
         if not keep.any():
             break
         todo, residual = todo[keep], residual[keep]
-        stiffness = evaluation.stiffness[keep]
         st = st.take(np.flatnonzero(keep))
         _, dg = st.control_path(lam[keep])
-        matrix = control_matrix(stiffness, st.force_controlled)
+        matrix = control_matrix(evaluation.du_dv[keep], evaluation.dF_dv[keep], st.force_controlled)
         normal_matrix = matrix @ np.swapaxes(matrix, -1, -2) + dg[:, :, None] * dg[:, None, :]
         with np.errstate(all="ignore"):
             try:
                 z = np.linalg.solve(normal_matrix, residual[..., None])[..., 0]
             except np.linalg.LinAlgError:
                 z = np.stack([np.linalg.lstsq(a, r, rcond=None)[0] for a, r in zip(normal_matrix, residual)])
-        y[todo, layout.u] -= np.einsum("bji,bj->bi", matrix, z)
+        y[todo, layout.v] -= np.einsum("bji,bj->bi", matrix, z)
         y[todo, layout.lam] += np.sum(dg * z, axis=-1)
     return y, converged
 
@@ -128,7 +140,7 @@ def _advance(
         return _rhs(batch, stage, y, layout)[0]
 
     y1, err = dop853_step(rhs, y0, h, options.rtol, options.atol)
-    if batch.law.has_total_form and y1.shape[0]:
+    if batch.has_total_form and y1.shape[0]:
         finite = np.isfinite(err)
         index = np.flatnonzero(finite)
         if index.size:
@@ -139,8 +151,7 @@ def _advance(
 
 
 def _indicators(batch: CaseBatch, stage: StageArrays, y: np.ndarray, aux: _Aux, layout: _Layout) -> np.ndarray:
-    gaps = batch.system.secondary_gaps(aux.evaluation.q)
-    return indicator_values(aux.evaluation.stiffness, gaps, stage, y[:, layout.lam], aux.dlam)
+    return indicator_values(aux.evaluation, stage, y[:, layout.lam], aux.dlam)
 
 
 @dataclass
@@ -260,6 +271,7 @@ def follow_cases(
     layout = _Layout(n, batch.n_internal)
     dofs, forces = batch.system.dof_names, batch.system.force_names
     y = np.zeros((size, layout.size))
+    y[:, layout.v] = batch.initial_state()
     stage_index = np.zeros(size, dtype=int)
     status = np.full(size, RUNNING, dtype=object)
     message = np.full(size, "", dtype=object)
@@ -304,7 +316,7 @@ def follow_cases(
             index,
             s=arclength[index],
             stage=stage_index[index],
-            u=yy[:, layout.u],
+            u=ev.displacements,
             lam=yy[:, layout.lam],
             internal=yy[:, layout.internal],
             work=yy[:, layout.work],
@@ -336,11 +348,13 @@ def follow_cases(
             stage = programme.stages[k]
             stage_index[index] = k
             sub = batch.take(index)
-            u, internal = y[index][:, layout.u], y[index][:, layout.internal]
-            evaluation = sub.evaluate(u, internal)
+            v, internal = y[index][:, layout.v], y[index][:, layout.internal]
+            evaluation = sub.evaluate(v, internal, stages.blocked[index])
+            u = evaluation.displacements
             current = {name: u[:, i] for i, name in enumerate(dofs)}
             current.update({name: evaluation.forces[:, i] for i, name in enumerate(forces)})
             arrays = StageArrays.empty(index.size, n)
+            arrays.blocked = stages.blocked[index].copy()
             bad = np.zeros(index.size, dtype=bool)
             reasons = np.full(index.size, "", dtype=object)
             if isinstance(stage, Stage):
@@ -382,7 +396,7 @@ def follow_cases(
                 bad |= zero
             y[index, layout.lam] = lam
             zero_length = (arrays.target_sign == 0) & ~bad
-            du, dlam, _ = path_tangent(evaluation.stiffness, arrays, lam, oriented=False)
+            _, _, dlam, _ = path_tangent(evaluation.du_dv, evaluation.dF_dv, arrays, lam, oriented=False)
             singular = ~(np.abs(dlam) > 0) & ~bad & ~zero_length
             reasons[singular] = (
                 f"stage {k + 1}: the control is singular at the stage start (det of the "
@@ -464,11 +478,7 @@ def follow_cases(
             continue
         cases, sub_a, st_a = cases[keep], sub_a.take(keep), st_a.take(keep)
         y_start, h_a, y_new = y_start[keep], h_a[keep], y_new[keep]
-        aux = _Aux(
-            Evaluation(*(getattr(aux.evaluation, f)[keep] for f in ("q", "normal", "tangential", "forces", "stiffness"))),
-            aux.du[keep],
-            aux.dlam[keep],
-        )
+        aux = aux.take(keep)
         indicators = _indicators(sub_a, st_a, y_new, aux, layout)
         before = previous[cases]
         change = np.sign(before) * np.sign(indicators) < 0
@@ -532,7 +542,7 @@ def follow_cases(
             table["s_upper"][target] = arclength[target] + upper[rows, col]
             table["stage"][target] = stage_index[target]
             table["lam"][target] = state[:, layout.lam]
-            table["u"][target] = state[:, layout.u]
+            table["u"][target] = ax.evaluation.displacements
             table["F"][target] = ax.evaluation.forces
             table["l"][target] = ax.evaluation.q[:, 0, 0]
             table["alpha"][target] = ax.evaluation.q[:, 0, 1]
@@ -545,6 +555,26 @@ def follow_cases(
         y_new = y_new.copy()
         if cut_rows.size:
             y_new[cut_rows] = located_y[cut_rows, cut_column[cut_rows]]
+            closing = cut_rows[break_columns[cut_column[cut_rows]]]
+            if closing.size:
+                # A secondary contact closed: the batch may change coordinates
+                # (rigid blocking); the stage arrays carry the new mode.
+                gap = np.asarray(INDICATOR_GAP)[cut_column[closing]]
+                block = st_a.blocked[closing].copy()
+                yy = y_new[closing]
+                b_close, s_close = sub_a.take(closing), st_a.take(closing)
+                _, ax_before = _rhs(b_close, s_close, yy, layout)
+                b_close.close_contact(yy, block, gap, layout)
+                y_new[closing] = yy
+                st_a.blocked[closing] = block
+                stages.blocked[cases[closing]] = block
+                # New coordinates may flip the cofactor tangent: keep lambda's direction.
+                s_close.blocked = block
+                s_close.orientation = np.ones(closing.size)
+                _, ax_after = _rhs(b_close, s_close, yy, layout)
+                flip = np.sign(ax_after.dlam) * np.sign(ax_before.dlam) < 0
+                st_a.orientation[closing[flip]] *= -1
+                stages.orientation[cases[closing[flip]]] *= -1
             b, s_ = sub_a.take(cut_rows), st_a.take(cut_rows)
             _, ax_cut = _rhs(b, s_, y_new[cut_rows], layout)
             ind_cut = _indicators(b, s_, y_new[cut_rows], ax_cut, layout)
@@ -552,10 +582,7 @@ def follow_cases(
             # point (secondary contact) is not detected twice.
             ind_cut[np.arange(cut_rows.size), cut_column[cut_rows]] = indicators[cut_rows, cut_column[cut_rows]]
             indicators[cut_rows] = ind_cut
-            for f in ("q", "normal", "tangential", "forces", "stiffness"):
-                getattr(aux.evaluation, f)[cut_rows] = getattr(ax_cut.evaluation, f)
-            aux.du[cut_rows] = ax_cut.du
-            aux.dlam[cut_rows] = ax_cut.dlam
+            aux.put(cut_rows, ax_cut)
         y[cases] = y_new
         arclength[cases] += reach
         accepted_count[cases] += 1

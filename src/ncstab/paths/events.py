@@ -27,10 +27,11 @@ from typing import Callable
 import numpy as np
 
 from ncstab.operators.indicators import det_K, flutter_discriminant, hill_eigenvalue
+from ncstab.paths.model import Evaluation
 from ncstab.paths.programme import EVENTS
 from ncstab.paths.tangent_field import StageArrays, control_matrix
 
-__all__ = ["INDICATOR_EVENTS", "TARGET_COLUMN", "indicator_values", "locate_sign_changes"]
+__all__ = ["INDICATOR_EVENTS", "INDICATOR_GAP", "TARGET_COLUMN", "indicator_values", "locate_sign_changes"]
 
 #: Event name of every indicator column (two columns for the two secondary gaps).
 INDICATOR_EVENTS = (
@@ -43,14 +44,15 @@ INDICATOR_EVENTS = (
     "turning_point",
     "stage_target",
 )
+#: Which secondary gap a column watches (1 top-bottom, 2 left-right, 0 none).
+INDICATOR_GAP = (0, 0, 0, 0, 1, 2, 0, 0)
 #: Column of the stage-target indicator.
 TARGET_COLUMN = len(INDICATOR_EVENTS) - 1
 assert set(INDICATOR_EVENTS[:-1]) == set(EVENTS)
 
 
 def indicator_values(
-    stiffness: np.ndarray,
-    gaps: np.ndarray,
+    evaluation: Evaluation,
     stage: StageArrays,
     lam: np.ndarray,
     dlam: np.ndarray,
@@ -59,16 +61,15 @@ def indicator_values(
 
     Parameters
     ----------
-    stiffness
-        K, ``(B, n, n)``.
-    gaps
-        Secondary-contact gaps, ``(B, 2)``.
+    evaluation
+        Forces, K, Jacobians and gaps at the states.
     stage
         The cases' stage arrays.
     lam, dlam
         Driven parameter and its oriented rate along the path, ``(B,)``.
     """
-    control = control_matrix(stiffness, stage.force_controlled)
+    stiffness, gaps = evaluation.stiffness, evaluation.gaps
+    control = control_matrix(evaluation.du_dv, evaluation.dF_dv, stage.force_controlled)
     target = (lam - stage.lam_end) * stage.target_sign
     return np.column_stack(
         [

@@ -7,7 +7,7 @@ a subset taken with :meth:`CaseBatch.take`) on whole arrays.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -23,23 +23,45 @@ __all__ = ["CaseBatch", "Evaluation"]
 class Evaluation:
     """Everything the engine needs at a batch of states.
 
+    The engine integrates *state coordinates* v (B, n): the displacements
+    themselves for a deformable system (v = u, du/dv = I, dF/dv = K), or other
+    coordinates where constraints hold exactly (the pure-shear limit:
+    v = (alpha, Nhat), see :mod:`ncstab.paths.rigid_model`).
+
     Attributes
     ----------
     q
         Contact variables (l, alpha), ``(B, n_c, 2)``.
     normal, tangential
         Contact forces N, T, ``(B, n_c)``.
+    displacements
+        Generalized displacements u(v), ``(B, n)``.
     forces
-        Generalized forces F, ``(B, n)``.
+        Generalized forces F(v), ``(B, n)``.
     stiffness
-        Tangent operator K, ``(B, n, n)``.
+        Tangent operator K (dF = K du), ``(B, n, n)``; NaN where undefined.
+    du_dv, dF_dv
+        Jacobians of u and F with respect to the state coordinates, ``(B, n, n)``.
+    gaps
+        Secondary-contact gaps (units of 2R), ``(B, 2)``.
     """
 
     q: np.ndarray
     normal: np.ndarray
     tangential: np.ndarray
+    displacements: np.ndarray
     forces: np.ndarray
     stiffness: np.ndarray
+    du_dv: np.ndarray
+    dF_dv: np.ndarray
+    gaps: np.ndarray
+
+    def take(self, index: np.ndarray) -> "Evaluation":
+        return Evaluation(*(getattr(self, f.name)[index] for f in fields(self)))
+
+    def put(self, index: np.ndarray, other: "Evaluation") -> None:
+        for f in fields(self):
+            getattr(self, f.name)[index] = getattr(other, f.name)
 
 
 def _take_parameters(parameters: dict[str, np.ndarray], index: np.ndarray) -> dict[str, np.ndarray]:
@@ -76,6 +98,11 @@ class CaseBatch:
         return self.system.n_dof
 
     @property
+    def has_total_form(self) -> bool:
+        """Whether forces are functions of the state (Newton projection applies)."""
+        return self.law.has_total_form
+
+    @property
     def n_internal(self) -> int:
         """Internal variables per case: T per contact for a rate-form law, else 0."""
         return 0 if self.law.has_total_form else self.system.n_contacts
@@ -108,20 +135,34 @@ class CaseBatch:
             tangential = internal
         return q, normal, tangential
 
-    def evaluate(self, u: np.ndarray, internal: np.ndarray, with_stiffness: bool = True) -> Evaluation:
-        """Forces (seed Eq. 4) and tangent operator (Eq. 30-34) at a batch of states."""
+    @property
+    def force_unit(self) -> str:
+        return "2R k_n"
+
+    def initial_state(self) -> np.ndarray:
+        """State coordinates of the unloaded state: u = 0, ``(B, n)``."""
+        return np.zeros((self.size, self.n_dof))
+
+    def evaluate(self, u: np.ndarray, internal: np.ndarray, blocked: np.ndarray | None = None) -> Evaluation:
+        """Forces (seed Eq. 4) and tangent operator (Eq. 30-34) at a batch of states.
+
+        The state coordinates are the displacements; ``blocked`` is unused
+        (secondary contacts are springs here, always present).
+        """
         q, normal, tangential = self.contact_state(u, internal)
         forces = self.system.generalized_forces(q, normal, tangential)
-        stiffness = np.empty(forces.shape + (self.n_dof,))
-        if with_stiffness:
-            stiffness = tangent_operator_at_contact_state(self.system, self.law, q, normal, tangential)
+        stiffness = tangent_operator_at_contact_state(self.system, self.law, q, normal, tangential)
         if self.activate_secondary:
             forces = forces + self.system.secondary_forces(u, self.kappa)
-            if with_stiffness:
-                stiffness = stiffness + self.system.secondary_stiffness(u, self.kappa)
-        return Evaluation(q, normal, tangential, forces, stiffness)
+            stiffness = stiffness + self.system.secondary_stiffness(u, self.kappa)
+        identity = np.broadcast_to(np.eye(self.n_dof), stiffness.shape)
+        gaps = self.system.secondary_gaps(q)
+        return Evaluation(q, normal, tangential, u, forces, stiffness, identity, stiffness, gaps)
 
-    def internal_rate(self, evaluation: Evaluation, du: np.ndarray) -> np.ndarray:
+    def close_contact(self, y: np.ndarray, blocked: np.ndarray, gap: np.ndarray, layout: object) -> None:
+        """A secondary contact closed: nothing to change, the springs are always present."""
+
+    def internal_rate(self, evaluation: Evaluation, du: np.ndarray, blocked: np.ndarray | None = None) -> np.ndarray:
         """d(internal)/ds along du/ds: dT = C_Tl dl + C_Ta dalpha (seed Eq. 13), (B, n_c)."""
         if self.n_internal == 0:
             return np.zeros(du.shape[:-1] + (0,))

@@ -6,7 +6,8 @@ Along a stage every dof i has either its displacement or its force prescribed:
 linear stage, a circle for a cycle stage).  With dF = K du this is
 ``M du = g' dlambda`` where M = P + Q K is the *control matrix* (rows of K for
 force-controlled dofs, identity rows otherwise; det M = det K_SS is the
-mixed-control determinant).  Its one-dimensional null space is spanned by the
+mixed-control determinant).  In state coordinates v (u = u(v), F = F(v)) the
+same holds with M = P du/dv + Q dF/dv.  Its one-dimensional null space is spanned by the
 cofactor vector
 
     (du, dlambda) = (adj(M) g', det M),
@@ -71,6 +72,10 @@ class StageArrays:
         ``(B,)`` +1 if lambda increases toward its target, -1 otherwise.
     orientation
         ``(B,)`` sign applied to the cofactor tangent, fixed at stage entry.
+    blocked
+        ``(B,)`` int: which rigid secondary contact is closed (0 none,
+        1 top-bottom, 2 left-right); only the pure-shear limit uses it, and it
+        carries over from stage to stage.
     """
 
     force_controlled: np.ndarray
@@ -84,6 +89,7 @@ class StageArrays:
     lam_end: np.ndarray
     target_sign: np.ndarray
     orientation: np.ndarray
+    blocked: np.ndarray
 
     @classmethod
     def empty(cls, size: int, n: int) -> "StageArrays":
@@ -99,6 +105,7 @@ class StageArrays:
             lam_end=np.zeros(size),
             target_sign=np.ones(size),
             orientation=np.ones(size),
+            blocked=np.zeros(size, dtype=int),
         )
 
     def take(self, index: np.ndarray) -> "StageArrays":
@@ -126,34 +133,39 @@ class StageArrays:
         return np.where(self.force_controlled, forces, u) - g
 
 
-def control_matrix(stiffness: np.ndarray, force_controlled: np.ndarray) -> np.ndarray:
-    """M = P + Q K: rows of K for force-controlled dofs, identity rows otherwise."""
-    n = stiffness.shape[-1]
-    return np.where(force_controlled[..., :, None], stiffness, np.eye(n))
+def control_matrix(du_dv: np.ndarray, df_dv: np.ndarray, force_controlled: np.ndarray) -> np.ndarray:
+    """M = P du/dv + Q dF/dv: rows of dF/dv for force-controlled dofs, of du/dv otherwise.
+
+    For a deformable system (v = u) this is P + Q K, whose determinant is the
+    mixed-control determinant det K_SS.
+    """
+    return np.where(force_controlled[..., :, None], df_dv, du_dv)
 
 
 def path_tangent(
-    stiffness: np.ndarray, stage: StageArrays, lam: np.ndarray, oriented: bool = True
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Unit tangent (du/ds, dlambda/ds) of the path and det M.
+    du_dv: np.ndarray, df_dv: np.ndarray, stage: StageArrays, lam: np.ndarray, oriented: bool = True
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Unit tangent of the path in state coordinates, and det M.
 
-    Normalised so that |du|^2 + |dF|^2 + dlambda^2 = 1 with dF = K du.
+    Normalised so that |du|^2 + |dF|^2 + dlambda^2 = 1 with du = (du/dv) dv and
+    dF = (dF/dv) dv.
 
     Returns
     -------
-    (du, dlam, det_m)
-        ``(B, n)``, ``(B,)``, ``(B,)``; NaN where the null space is not
-        one-dimensional (adj(M) g' = 0 and det M = 0).
+    (dv, du, dlam, det_m)
+        ``(B, n)``, ``(B, n)``, ``(B,)``, ``(B,)``; NaN where the null space is
+        not one-dimensional (adj(M) g' = 0 and det M = 0).
     """
     _, dg = stage.control_path(lam)
-    matrix = control_matrix(stiffness, stage.force_controlled)
+    matrix = control_matrix(du_dv, df_dv, stage.force_controlled)
     det_m = det_K(matrix)
-    du = np.einsum("bij,bj->bi", adjugate(matrix), dg)
+    dv = np.einsum("bij,bj->bi", adjugate(matrix), dg)
     dlam = det_m
-    df = np.einsum("bij,bj->bi", stiffness, du)
+    du = np.einsum("bij,bj->bi", du_dv, dv)
+    df = np.einsum("bij,bj->bi", df_dv, dv)
     norm = np.sqrt(np.sum(du**2, -1) + np.sum(df**2, -1) + dlam**2)
     with np.errstate(invalid="ignore", divide="ignore"):
         scale = np.where(norm > 0, 1.0 / norm, np.nan)
     if oriented:
         scale = scale * stage.orientation
-    return du * scale[:, None], dlam * scale, det_m
+    return dv * scale[:, None], du * scale[:, None], dlam * scale, det_m

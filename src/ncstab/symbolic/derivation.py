@@ -74,7 +74,7 @@ def is_identically_zero(expr: sp.Expr, *, probes: int = 64, seed: int = 20220712
 
     First ``sympy.simplify``; when that is inconclusive (non-smooth Macaulay
     brackets), evaluate at ``probes`` random admissible points (l in [0.3, 1.7],
-    angles in (0, pi/2), forces in [-1, 1], gamma in [0, 3]) and call it zero if
+    angles in [0.05, 1.5], forces in [-1, 1], gamma in [0, 3]) and call it zero if
     every value is below 1e-12 in absolute value.
 
     Returns

@@ -83,6 +83,7 @@ class DiamondChain:
 
     def contact_jacobian(self, q: np.ndarray) -> np.ndarray:
         """J = d(l, alpha)/d(Delta_1, Delta_2), seed Eq. (10)-(11), ``(..., 1, 2, 2)``."""
+        q = np.asarray(q, dtype=float)
         length, alpha = q[..., 0, 0], q[..., 0, 1]
         c, s = np.cos(alpha), np.sin(alpha)
         row_l = np.stack([-c, -s], axis=-1)
@@ -95,6 +96,7 @@ class DiamondChain:
         With c = (cos a, sin a) and s = (sin a, -cos a):
         d2l/du2 = s s^T / l and d2alpha/du2 = (c s^T + s c^T) / l^2.
         """
+        q = np.asarray(q, dtype=float)
         length, alpha = q[..., 0, 0], q[..., 0, 1]
         c = np.stack([np.cos(alpha), np.sin(alpha)], axis=-1)
         s = np.stack([np.sin(alpha), -np.cos(alpha)], axis=-1)
@@ -119,6 +121,7 @@ class DiamondChain:
 
         Returns arrays of shape ``(..., 1)`` (one contact family).
         """
+        q, forces = np.asarray(q, dtype=float), np.asarray(forces, dtype=float)
         alpha = q[..., 0, 1]
         f1, f2 = forces[..., 0], forces[..., 1]
         normal = (f1 * np.cos(alpha) + f2 * np.sin(alpha)) / 2

@@ -1,0 +1,158 @@
+"""The pure-shear limit of the diamond (rigid normal contacts), seed Eq. (60)-(68).
+
+With k_n -> infinity the branch length is fixed by the law, l = lbar(alpha)
+(:func:`ncstab.symbolic.rigid.rigid_limit`), the normal force is a reaction
+Nhat, and forces are in units of 2R k_t (Eq. 62).  The engine integrates the
+state coordinates
+
+* v = (alpha, Nhat) while the chain is free: u = u(alpha) by Eq. (3) with
+  l = lbar, F = F(alpha, Nhat) by Eq. (4);
+* v = (Nhat, Rhat) once a rigid secondary contact has closed (blocking,
+  Eq. 66-68): alpha is frozen, u is constant, and the reaction Rhat of the
+  new contact adds to F1 (top-bottom) or F2 (left-right).
+
+The tangent operator K = dF/du is undefined on the constraint (u moves on a
+curve): K and the indicators built on it are NaN; the control determinant,
+turning points and secondary contacts are located as usual.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ncstab.laws.registry import Law
+from ncstab.paths.model import Evaluation
+from ncstab.symbolic.rigid import RigidLimit, rigid_limit
+from ncstab.systems.diamond import DiamondChain
+
+__all__ = ["RigidCaseBatch"]
+
+FREE, TOP_BOTTOM, LEFT_RIGHT = 0, 1, 2
+
+
+@dataclass(frozen=True)
+class RigidCaseBatch:
+    """B cases of one law on the diamond with rigid normal contacts.
+
+    Internal variables: That for a rate law (Cundall--Strack), then the
+    orientation frozen by a blocking contact (always present, rate 0).
+    """
+
+    system: DiamondChain
+    law: Law
+    activate_secondary: bool
+
+    @property
+    def rigid(self) -> RigidLimit:
+        return rigid_limit(self.law.definition)
+
+    @property
+    def n_dof(self) -> int:
+        return 2
+
+    @property
+    def has_total_form(self) -> bool:
+        return self.rigid.tangential is not None
+
+    @property
+    def n_internal(self) -> int:
+        return (0 if self.has_total_form else 1) + 1
+
+    @property
+    def force_unit(self) -> str:
+        return "2R k_t"
+
+    @property
+    def size(self) -> int:
+        return int(np.size(self.system.parameters["alpha0"]))
+
+    @property
+    def _alpha0(self) -> np.ndarray:
+        return self.system.parameters["alpha0"]
+
+    def take(self, index: np.ndarray) -> "RigidCaseBatch":
+        alpha0 = self._alpha0[index] if np.ndim(self._alpha0) else self._alpha0
+        law = Law(self.law.definition, {k: (v[index] if np.ndim(v) else v) for k, v in self.law.parameters.items()})
+        return RigidCaseBatch(DiamondChain(alpha0=alpha0), law, self.activate_secondary)
+
+    def initial_state(self) -> np.ndarray:
+        """Unloaded state: alpha = alpha0, Nhat = 0."""
+        alpha0 = np.broadcast_to(self._alpha0, (self.size,))
+        return np.column_stack([alpha0, np.zeros(self.size)])
+
+    def evaluate(self, v: np.ndarray, internal: np.ndarray, blocked: np.ndarray | None = None) -> Evaluation:
+        """u(v), F(v), their Jacobians and the contact state (seed Eq. 3, 4, 61-65)."""
+        size = v.shape[0]
+        blocked = np.zeros(size, dtype=int) if blocked is None else blocked
+        free = blocked == FREE
+        alpha = np.where(free, v[:, 0], internal[:, -1])
+        reaction = np.where(free, v[:, 1], v[:, 0])
+        contact_reaction = np.where(free, 0.0, v[:, 1])
+        alpha0 = np.broadcast_to(self._alpha0, (size,))
+        length, dlength = self.rigid.branch_length(alpha, alpha0)
+        c, s = np.cos(alpha), np.sin(alpha)
+        if self.has_total_form:
+            tangential, t_alpha, t_reaction = self.rigid.tangential_force(alpha, reaction, alpha0)
+        else:
+            tangential = internal[:, 0]
+            t_alpha = self.rigid.tangential_rate_along(alpha, alpha0)
+            t_reaction = np.zeros(size)
+        u = np.column_stack([np.cos(alpha0) - length * c, np.sin(alpha0) - length * s])
+        forces = np.column_stack(
+            [
+                2 * reaction * c + 2 * tangential * s + contact_reaction * (blocked == TOP_BOTTOM),
+                2 * reaction * s - 2 * tangential * c + contact_reaction * (blocked == LEFT_RIGHT),
+            ]
+        )
+        du_dalpha = np.column_stack([-dlength * c + length * s, -dlength * s - length * c])
+        df_dalpha = np.column_stack(
+            [
+                -2 * reaction * s + 2 * t_alpha * s + 2 * tangential * c,
+                2 * reaction * c - 2 * t_alpha * c + 2 * tangential * s,
+            ]
+        )
+        df_dreaction = np.column_stack([2 * c + 2 * t_reaction * s, 2 * s - 2 * t_reaction * c])
+        df_dcontact = np.column_stack([(blocked == TOP_BOTTOM), (blocked == LEFT_RIGHT)]).astype(float)
+        zeros = np.zeros((size, 2))
+        du_dv = np.where(free[:, None, None], np.stack([du_dalpha, zeros], -1), 0.0)
+        df_dv = np.where(
+            free[:, None, None],
+            np.stack([df_dalpha, df_dreaction], -1),
+            np.stack([df_dreaction, df_dcontact], -1),
+        )
+        gaps = np.column_stack([2 * length * c - 1, 2 * length * s - 1])
+        gaps[blocked == TOP_BOTTOM, 0] = 0.0
+        gaps[blocked == LEFT_RIGHT, 1] = 0.0
+        q = np.stack([length, alpha], -1)[:, None, :]
+        stiffness = np.full((size, 2, 2), np.nan)
+        return Evaluation(
+            q, reaction[:, None], tangential[:, None], u, forces, stiffness, du_dv, df_dv, gaps
+        )
+
+    def internal_rate(self, evaluation: Evaluation, dv: np.ndarray, blocked: np.ndarray | None = None) -> np.ndarray:
+        """dThat/ds = (dThat/dalpha) dalpha/ds while free (0 when blocked); frozen alpha: 0."""
+        size = dv.shape[0]
+        blocked = np.zeros(size, dtype=int) if blocked is None else blocked
+        frozen_rate = np.zeros((size, 1))
+        if self.has_total_form:
+            return frozen_rate
+        alpha = evaluation.q[:, 0, 1]
+        alpha0 = np.broadcast_to(self._alpha0, (size,))
+        rate = self.rigid.tangential_rate_along(alpha, alpha0) * np.where(blocked == FREE, dv[:, 0], 0.0)
+        return np.column_stack([rate, frozen_rate[:, 0]])
+
+    def close_contact(self, y: np.ndarray, blocked: np.ndarray, gap: np.ndarray, layout) -> None:
+        """Blocking: switch free cases to v = (Nhat, Rhat = 0) with alpha frozen (in place)."""
+        closing = (blocked == FREE) & (gap > 0)
+        if not closing.any():
+            return
+        v = y[:, layout.v]
+        internal = y[:, layout.internal]
+        internal[closing, -1] = v[closing, 0]
+        v[closing, 0] = v[closing, 1]
+        v[closing, 1] = 0.0
+        y[:, layout.v] = v
+        y[:, layout.internal] = internal
+        blocked[closing] = gap[closing]
