@@ -107,8 +107,9 @@ def tangent_operator_at_contact_state(
         length, alpha = q[..., c, 0], q[..., c, 1]
         d_matrix = conjugate_tangent(law, length, alpha, normal[..., c], tangential[..., c])
         conjugate = conjugate_forces(length, normal[..., c], tangential[..., c])
-        material = np.einsum("...ki,...kl,...lj->...ij", jacobian[..., c, :, :], d_matrix, jacobian[..., c, :, :])
-        geometric = np.einsum("...k,...kij->...ij", conjugate, hessian[..., c, :, :, :])
+        jac = jacobian[..., c, :, :]
+        material = np.swapaxes(jac, -1, -2) @ d_matrix @ jac
+        geometric = (conjugate[..., :, None, None] * hessian[..., c, :, :, :]).sum(axis=-3)
         stiffness = stiffness + weights[c] * (material + geometric)
     return np.asarray(stiffness)
 

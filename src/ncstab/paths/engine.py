@@ -31,7 +31,7 @@ from ncstab.paths.events import (
     indicator_values,
     locate_sign_changes,
 )
-from ncstab.paths.integrator import ERROR_EXPONENT, dop853_step
+from ncstab.paths.integrator import ERROR_EXPONENT, dense_output, dop853_step, evaluate_dense
 from ncstab.paths.model import CaseBatch, Evaluation
 from ncstab.paths.options import PathOptions
 from ncstab.paths.programme import CURRENT, EVENTS, CycleStage, LoadingProgramme, Stage
@@ -133,21 +133,34 @@ def _advance(
     h: np.ndarray,
     layout: _Layout,
     options: PathOptions,
-) -> tuple[np.ndarray, np.ndarray]:
-    """One step of length h per case: DOP853, then Newton projection (total forms)."""
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """One step of length h per case: DOP853, then Newton projection (total forms).
+
+    Returns the new states, the error norms (inf where Newton failed), the
+    unprojected DOP853 end states and the stage derivatives (for dense output).
+    """
 
     def rhs(y: np.ndarray) -> np.ndarray:
         return _rhs(batch, stage, y, layout)[0]
 
-    y1, err = dop853_step(rhs, y0, h, options.rtol, options.atol)
+    y_raw, err, stages = dop853_step(rhs, y0, h, options.rtol, options.atol)
+    y1 = y_raw.copy()
     if batch.has_total_form and y1.shape[0]:
-        finite = np.isfinite(err)
-        index = np.flatnonzero(finite)
-        if index.size:
-            projected, converged = _project(batch.take(index), stage.take(index), y1[index], layout, options)
-            y1[index] = projected
-            err[index[~converged]] = np.inf
-    return y1, err
+        y1, err = _project_finite(batch, stage, y1, err, layout, options)
+    return y1, err, y_raw, stages
+
+
+def _project_finite(
+    batch: CaseBatch, stage: StageArrays, y: np.ndarray, err: np.ndarray, layout: _Layout, options: PathOptions
+) -> tuple[np.ndarray, np.ndarray]:
+    """Newton-project the finite states; err = inf where projection fails."""
+    y, err = y.copy(), err.copy()
+    index = np.flatnonzero(np.isfinite(err))
+    if index.size:
+        projected, converged = _project(batch.take(index), stage.take(index), y[index], layout, options)
+        y[index] = projected
+        err[index[~converged]] = np.inf
+    return y, err
 
 
 def _indicators(batch: CaseBatch, stage: StageArrays, y: np.ndarray, aux: _Aux, layout: _Layout) -> np.ndarray:
@@ -162,8 +175,9 @@ class _Recorder:
     chunks: list[dict[str, np.ndarray]] = field(default_factory=list)
 
     def add(self, case: np.ndarray, **values: np.ndarray) -> None:
-        if case.size:
-            self.chunks.append({"case": case, **values})
+        # Empty chunks are kept: they give every field its shape and dtype even
+        # when no case stores a state (all fail at the first stage start).
+        self.chunks.append({"case": case, **values})
 
     def assemble(self) -> tuple[dict[str, np.ndarray], np.ndarray]:
         cases = np.concatenate([c["case"] for c in self.chunks])
@@ -411,7 +425,7 @@ def follow_cases(
                 which = index[bad & (reasons == reason)]
                 fail(which, "singular_control" if "singular" in reason else "bad_stage_start", reason)
             go = ~bad & ~zero_length
-            if go.any():
+            if go.any() or not recorder.chunks:
                 gi = index[go]
                 sub_go = batch.take(gi)
                 st_go = stages.take(gi)
@@ -430,7 +444,7 @@ def follow_cases(
         st = stages.take(active)
         y0 = y[active]
         h0 = np.minimum(step_size[active], options.max_step)
-        y1, err = _advance(sub, st, y0, h0, layout, options)
+        y1, err, y_raw, stages_k = _advance(sub, st, y0, h0, layout, options)
         accept = err <= 1.0
         with np.errstate(divide="ignore", invalid="ignore"):
             factor = np.where(err == 0, 10.0, np.clip(0.9 * err**ERROR_EXPONENT, 0.2, 10.0))
@@ -454,6 +468,8 @@ def follow_cases(
         y_start = y0[local]
         h_a = h0[local]
         y_new = y1[local]
+        y_raw_a = y_raw[local]
+        stages_a = stages_k[:, local]
         _, aux = _rhs(sub_a, st_a, y_new, layout)
         q = aux.evaluation.q
         length, angle = q[:, 0, 0], q[:, 0, 1]
@@ -478,6 +494,7 @@ def follow_cases(
             continue
         cases, sub_a, st_a = cases[keep], sub_a.take(keep), st_a.take(keep)
         y_start, h_a, y_new = y_start[keep], h_a[keep], y_new[keep]
+        y_raw_a, stages_a = y_raw_a[keep], stages_a[:, keep]
         aux = aux.take(keep)
         indicators = _indicators(sub_a, st_a, y_new, aux, layout)
         before = previous[cases]
@@ -490,15 +507,29 @@ def follow_cases(
         upper = np.full((cases.size, n_cols), np.nan)
         located_y = np.full((cases.size, n_cols, layout.size), np.nan)
         exact_target = change[:, TARGET_COLUMN] & (indicators[:, TARGET_COLUMN] == 0)
+        needs = np.flatnonzero(change.any(axis=1))
+        dense = {}
+        if needs.size:
+            # DOP853 interpolant over the step (3 extra stages, only where needed).
+            b_n, s_n = sub_a.take(needs), st_a.take(needs)
+            coefficients = dense_output(
+                lambda yy: _rhs(b_n, s_n, yy, layout)[0],
+                y_start[needs], y_raw_a[needs], h_a[needs], stages_a[:, needs],
+            )
+            dense = {int(r): k for k, r in enumerate(needs)}
         for column in np.flatnonzero(change.any(axis=0)):
             rows = np.flatnonzero(change[:, column] & ~(exact_target & (column == TARGET_COLUMN)))
             if rows.size == 0:
                 continue
+            slots = np.array([dense[int(r)] for r in rows])
 
-            def evaluate(index: np.ndarray, lengths: np.ndarray, rows: np.ndarray = rows, column: int = column):
+            def evaluate(index: np.ndarray, lengths: np.ndarray, rows: np.ndarray = rows,
+                         slots: np.ndarray = slots, column: int = column):
                 pick = rows[index]
                 b, s_ = sub_a.take(pick), st_a.take(pick)
-                yy, e = _advance(b, s_, y_start[pick], lengths, layout, options)
+                yy = evaluate_dense(y_start[pick], coefficients[:, slots[index]], lengths / h_a[pick])
+                if b.has_total_form:
+                    yy, _ = _project_finite(b, s_, yy, np.zeros(pick.size), layout, options)
                 _, ax = _rhs(b, s_, yy, layout)
                 return _indicators(b, s_, yy, ax, layout)[:, column], yy
 

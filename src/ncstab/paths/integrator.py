@@ -12,7 +12,7 @@ from typing import Callable
 import numpy as np
 from scipy.integrate._ivp import dop853_coefficients as dop
 
-__all__ = ["dop853_step", "error_norm", "ERROR_EXPONENT"]
+__all__ = ["dop853_step", "dense_output", "evaluate_dense", "error_norm", "ERROR_EXPONENT"]
 
 _A = dop.A[: dop.N_STAGES, : dop.N_STAGES]
 _B = dop.B
@@ -34,8 +34,8 @@ def error_norm(stages: np.ndarray, h: np.ndarray, scale: np.ndarray) -> np.ndarr
     scale
         ``atol + rtol * max(|y0|, |y1|)``, ``(B, m)``.
     """
-    err5 = np.einsum("k,kbm->bm", _E5, stages) / scale
-    err3 = np.einsum("k,kbm->bm", _E3, stages) / scale
+    err5 = np.tensordot(_E5, stages, axes=(0, 0)) / scale
+    err3 = np.tensordot(_E3, stages, axes=(0, 0)) / scale
     err5_sq = np.sum(err5**2, axis=-1)
     err3_sq = np.sum(err3**2, axis=-1)
     denominator = err5_sq + 0.01 * err3_sq
@@ -70,21 +70,61 @@ def dop853_step(
 
     Returns
     -------
-    (y1, err)
-        New states ``(B, m)`` and error norms ``(B,)`` (accept where <= 1;
-        ``inf`` where a stage produced non-finite numbers).
+    (y1, err, stages)
+        New states ``(B, m)``, error norms ``(B,)`` (accept where <= 1;
+        ``inf`` where a stage produced non-finite numbers) and the stage
+        derivatives ``(N_STAGES + 1, B, m)`` (for :func:`dense_output`).
     """
     hb = h[:, None]
-    stages = np.empty((dop.N_STAGES + 1,) + y0.shape)
+    stages = np.empty((dop.N_STAGES_EXTENDED,) + y0.shape)
     stages[0] = rhs(y0) if f0 is None else f0
     with np.errstate(all="ignore"):
         for s in range(1, dop.N_STAGES):
-            dy = np.einsum("k,kbm->bm", _A[s, :s], stages[:s]) * hb
+            dy = np.tensordot(_A[s, :s], stages[:s], axes=(0, 0)) * hb
             stages[s] = rhs(y0 + dy)
-        y1 = y0 + hb * np.einsum("k,kbm->bm", _B, stages[: dop.N_STAGES])
-        stages[-1] = rhs(y1)
+        y1 = y0 + hb * np.tensordot(_B, stages[: dop.N_STAGES], axes=(0, 0))
+        stages[dop.N_STAGES] = rhs(y1)
         scale = atol + np.maximum(np.abs(y0), np.abs(y1)) * rtol
-        err = error_norm(stages, h, scale)
+        err = error_norm(stages[: dop.N_STAGES + 1], h, scale)
     bad = ~np.isfinite(y1).all(axis=-1) | ~np.isfinite(err)
     err = np.where(bad, np.inf, err)
-    return y1, err
+    return y1, err, stages
+
+
+def dense_output(
+    rhs: Callable[[np.ndarray], np.ndarray],
+    y0: np.ndarray,
+    y1: np.ndarray,
+    h: np.ndarray,
+    stages: np.ndarray,
+) -> np.ndarray:
+    """Coefficients of the DOP853 7th-order interpolant over a step (scipy's).
+
+    Computes the three extra stages for the cases given (a subset of a step:
+    pass the matching slices) and returns ``F`` of shape
+    ``(INTERPOLATOR_POWER, B, m)`` for :func:`evaluate_dense`.
+    """
+    stages = stages.copy()
+    hb = h[:, None]
+    with np.errstate(all="ignore"):
+        for s in range(dop.N_STAGES + 1, dop.N_STAGES_EXTENDED):
+            dy = np.einsum("k,kbm->bm", dop.A[s, :s], stages[:s]) * hb
+            stages[s] = rhs(y0 + dy)
+    f_old, f_new = stages[0], stages[dop.N_STAGES]
+    delta = y1 - y0
+    coefficients = np.empty((dop.INTERPOLATOR_POWER,) + y0.shape)
+    coefficients[0] = delta
+    coefficients[1] = hb * f_old - delta
+    coefficients[2] = 2 * delta - hb * (f_new + f_old)
+    coefficients[3:] = hb[None] * np.einsum("pk,kbm->pbm", dop.D, stages)
+    return coefficients
+
+
+def evaluate_dense(y0: np.ndarray, coefficients: np.ndarray, fraction: np.ndarray) -> np.ndarray:
+    """y at ``fraction`` (B,) of each step, from :func:`dense_output` (scipy's Horner form)."""
+    x = fraction[:, None]
+    y = np.zeros_like(y0)
+    for i, f in enumerate(coefficients[::-1]):
+        y += f
+        y *= x if i % 2 == 0 else 1 - x
+    return y + y0

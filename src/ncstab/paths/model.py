@@ -168,7 +168,7 @@ class CaseBatch:
             return np.zeros(du.shape[:-1] + (0,))
         q = evaluation.q
         jacobian = self.system.contact_jacobian(q)  # (B, n_c, 2, n)
-        dq = np.einsum("bckn,bn->bck", jacobian, du)
+        dq = (jacobian @ du[:, None, :, None])[..., 0]
         rates = []
         for c in range(self.system.n_contacts):
             rate = self.compiled.rate_matrix(

@@ -57,6 +57,11 @@ class Path:
     study_text: str = ""
 
     @property
+    def force_unit(self) -> str:
+        """Unit of forces: 2R k_n, or 2R k_t in the pure-shear limit (seed Eq. 62)."""
+        return "2R k_t" if self.system.normal == "rigid" else "2R k_n"
+
+    @property
     def shape(self) -> tuple[int, ...]:
         """Sweep shape: (law, *swept parameters)."""
         return (len(self.laws),) + self.grid.shape
@@ -157,6 +162,9 @@ class Path:
         }
         for name, (dims, values) in list(data.items()):
             units, long_name, description = VARIABLES[name]
+            if self.system.normal == "rigid" and name in ("F", "N", "T"):
+                description = description.replace("2R k_n", "2R k_t") + " (pure-shear limit: forces in units of 2R k_t, seed Eq. 62)"
+                long_name = long_name.replace("*", "^")
             attrs = {"long_name": long_name, "description": description}
             if units:
                 attrs["units"] = units
@@ -204,6 +212,7 @@ class Path:
             "secondary_contacts": self.system.secondary_contacts,
             "normal": self.system.normal,
             "law_class": "; ".join(f"{l}: {classes[l]}" for l in self.laws),
+            "force_unit": self.force_unit,
             "source": "Challamel, Nicot, Wautier, Darve & Lerbet (2022), J. Eng. Mech. 148(9) 04022053",
         }
         for name, value in self.grid.fixed.items():

@@ -159,10 +159,10 @@ def path_tangent(
     _, dg = stage.control_path(lam)
     matrix = control_matrix(du_dv, df_dv, stage.force_controlled)
     det_m = det_K(matrix)
-    dv = np.einsum("bij,bj->bi", adjugate(matrix), dg)
+    dv = (adjugate(matrix) @ dg[:, :, None])[:, :, 0]
     dlam = det_m
-    du = np.einsum("bij,bj->bi", du_dv, dv)
-    df = np.einsum("bij,bj->bi", df_dv, dv)
+    du = (du_dv @ dv[:, :, None])[:, :, 0]
+    df = (df_dv @ dv[:, :, None])[:, :, 0]
     norm = np.sqrt(np.sum(du**2, -1) + np.sum(df**2, -1) + dlam**2)
     with np.errstate(invalid="ignore", divide="ignore"):
         scale = np.where(norm > 0, 1.0 / norm, np.nan)

@@ -1,0 +1,114 @@
+"""Sweep throughput: the batched engine against one solve_ivp per case, same run.
+
+The problem (issue 3): the Cundall--Strack diamond, F2* held at 0 and Delta_1*
+driven from 0 to 0.2, for 4,096 cases (64 gamma in [0.1, 2] x 64 alpha0 in
+[0.3, 1.2]).  Both methods must reach F1* and Delta_2* at Delta_1* = 0.2
+within 1e-8 of a tight reference (solve_ivp DOP853, rtol 1e-13), checked on a
+random subset of cases.  The baseline integrates the seed's Eq. (38) written
+by hand with scalar math, which is the fastest plain-Python form of the loop.
+
+Run:  python benchmarks/bench_sweep_cundall_strack.py [--cases-per-side 64]
+
+Prints both times, the ratio, and the accuracy of each.  This is a benchmark,
+not a test: nothing here asserts a time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+import ncstab
+from ncstab.paths import PathOptions, SystemSpec
+
+TARGET = 0.2
+
+
+def baseline_rhs(gamma: float, alpha0: float):
+    """dy/dD1 for y = (D2, F1) with F2 = 0 held, from seed Eq. (38)."""
+    c0, s0 = math.cos(alpha0), math.sin(alpha0)
+
+    def rhs(d1: float, y: np.ndarray) -> list[float]:
+        d2, f1 = y
+        vertical, horizontal = c0 - d1, s0 - d2
+        length = math.hypot(vertical, horizontal)
+        c, s = vertical / length, horizontal / length
+        k11 = 2 * c * c + 2 * gamma * s * s
+        k12 = 2 * (1 - gamma) * c * s
+        k21 = 2 * (1 - gamma) * c * s + s / length * f1
+        k22 = 2 * s * s + 2 * gamma * c * c - c / length * f1
+        dd2 = -k21 / k22
+        return [dd2, k11 + k12 * dd2]
+
+    return rhs
+
+
+def run_baseline(gammas: np.ndarray, alpha0s: np.ndarray, rtol: float, atol: float) -> np.ndarray:
+    out = np.empty((gammas.size, 2))
+    for k, (gamma, alpha0) in enumerate(zip(gammas, alpha0s)):
+        sol = solve_ivp(baseline_rhs(gamma, alpha0), (0.0, TARGET), [0.0, 0.0], method="DOP853", rtol=rtol, atol=atol)
+        out[k] = sol.y[:, -1]
+    return out
+
+
+def run_engine(gamma: np.ndarray, alpha0: np.ndarray, options: PathOptions) -> tuple[np.ndarray, object]:
+    path = ncstab.follow(
+        SystemSpec(secondary_contacts="ignore"),
+        "cundall_strack",
+        [{"hold": {"F2": 0.0}, "drive": {"D1": TARGET}}],
+        {"gamma": list(gamma), "alpha0": list(alpha0)},
+        options,
+    )
+    result = path.results[0]
+    last = result.n_steps - 1
+    rows = np.arange(last.size)
+    d2 = result.steps["u"][rows, last, 1]
+    f1 = result.steps["F"][rows, last, 0]
+    return np.column_stack([d2, f1]), path
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--cases-per-side", type=int, default=64)
+    parser.add_argument("--check", type=int, default=128, help="cases checked against the tight reference")
+    args = parser.parse_args()
+    side = args.cases_per_side
+    gamma = np.linspace(0.1, 2.0, side)
+    alpha0 = np.linspace(0.3, 1.2, side)
+    gg, aa = (m.ravel() for m in np.meshgrid(gamma, alpha0, indexing="ij"))
+    n = gg.size
+
+    ncstab.follow(SystemSpec(secondary_contacts="ignore"), "cundall_strack",
+                  [{"hold": {"F2": 0.0}, "drive": {"D1": 0.01}}], {"gamma": 1.0})  # compile once (sympy)
+
+    options = PathOptions(rtol=1e-10, atol=1e-12, max_step=1.0)
+    start = time.perf_counter()
+    engine, path = run_engine(gamma, alpha0, options)
+    engine_time = time.perf_counter() - start
+
+    baseline_rtol, baseline_atol = 1e-10, 1e-12
+    start = time.perf_counter()
+    baseline = run_baseline(gg, aa, baseline_rtol, baseline_atol)
+    baseline_time = time.perf_counter() - start
+
+    rng = np.random.default_rng(0)
+    subset = rng.choice(n, size=min(args.check, n), replace=False)
+    reference = run_baseline(gg[subset], aa[subset], 1e-13, 1e-14)
+    engine_error = np.abs(engine[subset] - reference).max()
+    baseline_error = np.abs(baseline[subset] - reference).max()
+    statuses = dict(zip(*np.unique(path.status, return_counts=True)))
+
+    print(f"cases                      {n}")
+    print(f"engine  (batched, events)  {engine_time:8.3f} s   max error {engine_error:.2e}   statuses {statuses}")
+    print(f"baseline (solve_ivp loop)  {baseline_time:8.3f} s   max error {baseline_error:.2e}")
+    print(f"ratio baseline / engine    {baseline_time / engine_time:8.1f} x")
+    located = int(path.results[0].counters["located"].sum())
+    print(f"events located by the engine (the baseline locates none): {located}")
+
+
+if __name__ == "__main__":
+    main()
