@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 from typing import Sequence
 
 import ncstab
@@ -40,6 +41,131 @@ def command_laws(args: argparse.Namespace) -> int:
     return 0
 
 
+def _status_summary(dataset) -> list[str]:
+    """Lines summarising case statuses: finished, stopped at events, failed with reasons."""
+    import numpy as np
+
+    status = np.asarray(dataset["status"].values).astype(str).ravel()
+    message = np.asarray(dataset["message"].values).astype(str).ravel()
+    lines = [f"  cases: {status.size}"]
+    finished = int(np.sum(status == "finished"))
+    lines.append(f"  finished: {finished}")
+    stopped = sorted({s for s in status if s.startswith("stopped:")})
+    for state in stopped:
+        lines.append(f"  stopped at {state.split(':', 1)[1]}: {int(np.sum(status == state))}")
+    failed = sorted({s for s in status if s.startswith("failed:")})
+    for state in failed:
+        which = status == state
+        example = message[which][0]
+        lines.append(f"  FAILED ({state.split(':', 1)[1]}): {int(which.sum())} -- e.g. {example}")
+    return lines
+
+
+def _event_summary(dataset) -> list[str]:
+    import numpy as np
+
+    from ncstab.paths.programme import EVENTS
+
+    lines = []
+    for event in EVENTS:
+        name = f"{event}_s"
+        if name not in dataset:
+            continue
+        found = np.isfinite(np.asarray(dataset[name].values))
+        if found.any():
+            f1 = np.asarray(dataset[f"{event}_F"].sel(dof=1).values)[found]
+            lines.append(
+                f"  {event}: found in {int(found.sum())} of {found.size} cases"
+                f" (F1 from {np.nanmin(f1):.6g} to {np.nanmax(f1):.6g})"
+            )
+    return lines or ["  no events located"]
+
+
+def command_run(args: argparse.Namespace) -> int:
+    """Validate every study first (exit 2 if any is bad), then run, write, draw."""
+    from ncstab.plotting import draw_figures
+    from ncstab.studies import StudyFileError, default_output_path, load_study, run_study, write_dataset
+
+    if args.output is not None and len(args.studies) != 1:
+        print("ncstab run: -o/--output needs exactly one study file", file=sys.stderr)
+        return 2
+    studies = []
+    bad = False
+    for path in args.studies:
+        try:
+            studies.append(load_study(path))
+        except StudyFileError as error:
+            print(str(error), file=sys.stderr)
+            bad = True
+        except OSError as error:
+            print(f"{path}: cannot read the study file: {error}", file=sys.stderr)
+            bad = True
+    if bad:
+        print("ncstab run: nothing was run (fix the study file errors above)", file=sys.stderr)
+        return 2
+    progress = sys.stderr.isatty() and not args.quiet
+    any_failed = False
+    for study in studies:
+        output = Path(args.output) if args.output else default_output_path(study)
+        dataset = run_study(study, progress=progress)
+        write_dataset(dataset, output)
+        figures = draw_figures(dataset, output.parent, stem=output.stem)
+        print(f"{study.name}: wrote {output}")
+        for figure in figures:
+            print(f"  figure {figure}")
+        for line in _status_summary(dataset):
+            print(line)
+        any_failed |= bool((dataset["status"].astype(str).str.startswith("failed")).any())
+    return 1 if any_failed else 0
+
+
+def command_plot(args: argparse.Namespace) -> int:
+    """Redraw the figures of an archive from the archive alone."""
+    from ncstab.plotting import draw_figures
+    from ncstab.studies import open_study
+
+    path = Path(args.archive)
+    if not path.exists():
+        print(f"ncstab plot: no such archive: {path}", file=sys.stderr)
+        return 2
+    dataset = open_study(path)
+    kinds = args.kinds.split(",") if args.kinds else None
+    directory = Path(args.directory) if args.directory else path.parent
+    for figure in draw_figures(dataset, directory, kinds=kinds, stem=path.stem):
+        print(figure)
+    return 0
+
+
+def command_info(args: argparse.Namespace) -> int:
+    """Summarise an archive: study, sweep, statuses, events."""
+    from ncstab.studies import open_study
+
+    path = Path(args.archive)
+    if not path.exists():
+        print(f"ncstab info: no such archive: {path}", file=sys.stderr)
+        return 2
+    ds = open_study(path)
+    attrs = ds.attrs
+    print(f"{path}")
+    print(f"  study: {attrs.get('study_name', '?')} -- {attrs.get('study_description', '')}".rstrip(" -"))
+    print(f"  created {attrs.get('created', '?')} with ncstab {attrs.get('ncstab_version', '?')}")
+    print(f"  system: {attrs.get('system', '?')} (normal {attrs.get('normal', '?')}, secondary contacts "
+          f"{attrs.get('secondary_contacts', '?')}), forces in units of {attrs.get('force_unit', '?')}")
+    laws = [f"{law} ({cls})" for law, cls in zip(ds["law"].values, ds["law_class"].values)]
+    print(f"  laws: {', '.join(laws)}")
+    sweep = [d for d in ds["status"].dims if d != "law"]
+    for name in sweep:
+        values = ", ".join(f"{v:g}" for v in ds[name].values)
+        print(f"  sweep {name}: [{values}]")
+    fixed = {k[len('parameter_'):]: v for k, v in attrs.items() if k.startswith("parameter_")}
+    if fixed:
+        print("  fixed: " + ", ".join(f"{k} = {v:g}" for k, v in fixed.items()))
+    print(f"  stored states: up to {ds.sizes.get('step', 0)} per case")
+    for line in _status_summary(ds) + _event_summary(ds):
+        print(line)
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="ncstab",
@@ -55,6 +181,28 @@ def build_parser() -> argparse.ArgumentParser:
         "--all", action="store_true", help="also list every law with the no_tension modifier"
     )
     laws.set_defaults(handler=command_laws)
+
+    run = sub.add_parser(
+        "run",
+        help="run study files: write the NetCDF archive and the figures",
+        description="Run study files (TOML). Exit code 0: every case finished or stopped at an "
+        "event; 1: some case failed; 2: a study file is invalid (nothing is run).",
+    )
+    run.add_argument("studies", nargs="+", metavar="STUDY.toml", help="study files")
+    run.add_argument("-o", "--output", metavar="OUT.nc", help="archive path (one study only); "
+                     "default results/<study name>.nc")
+    run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    run.set_defaults(handler=command_run)
+
+    plot = sub.add_parser("plot", help="redraw the figures of an archive")
+    plot.add_argument("archive", metavar="OUT.nc")
+    plot.add_argument("--kinds", help="comma-separated figure kinds (default: the study's)")
+    plot.add_argument("--directory", help="where to write the PNGs (default: beside the archive)")
+    plot.set_defaults(handler=command_plot)
+
+    info = sub.add_parser("info", help="summarise an archive: study, sweep, statuses, events")
+    info.add_argument("archive", metavar="OUT.nc")
+    info.set_defaults(handler=command_info)
     return parser
 
 

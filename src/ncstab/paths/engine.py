@@ -26,6 +26,7 @@ import numpy as np
 
 from ncstab.paths.events import (
     INDICATOR_EVENTS,
+    CYCLE_COLUMN,
     INDICATOR_GAP,
     TARGET_COLUMN,
     indicator_values,
@@ -121,8 +122,12 @@ def _project(
                 z = np.linalg.solve(normal_matrix, residual[..., None])[..., 0]
             except np.linalg.LinAlgError:
                 z = np.stack([np.linalg.lstsq(a, r, rcond=None)[0] for a, r in zip(normal_matrix, residual)])
-        y[todo, layout.v] -= np.einsum("bji,bj->bi", matrix, z)
+        dv = -np.einsum("bji,bj->bi", matrix, z)
+        y[todo, layout.v] += dv
         y[todo, layout.lam] += np.sum(dg * z, axis=-1)
+        # Keep the work W = int F . du / 2 consistent with the corrected path.
+        du = (evaluation.du_dv[keep] @ dv[:, :, None])[:, :, 0]
+        y[todo, layout.work] += 0.5 * np.sum(evaluation.forces[keep] * du, axis=-1)
     return y, converged
 
 
@@ -220,6 +225,12 @@ class CaseResult:
         ``K (B, n, n)``.
     counters
         ``accepted``, ``rejected``, ``located`` per case.
+    cycles
+        Per turn of every cycle stage (in programme order): ``work`` (B, C),
+        the work per contact over the turn (seed Eq. 5, from the integrated
+        work, not a quadrature of stored states); ``force_gap`` (B, C, n), F at
+        the end minus F at the start of the turn; ``tangential_drift`` (B, C),
+        the same for T (the internal variable of a rate law); ``stage`` (C,).
     """
 
     steps: dict[str, np.ndarray]
@@ -228,6 +239,7 @@ class CaseResult:
     message: np.ndarray
     events: dict[str, dict[str, np.ndarray]]
     counters: dict[str, np.ndarray]
+    cycles: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 def _empty_events(size: int, n: int) -> dict[str, dict[str, np.ndarray]]:
@@ -306,6 +318,18 @@ def follow_cases(
             stop_table[k, event_column[name]] = True
         if secondary_contacts == "stop":
             stop_table[k, event_column["secondary_contact"]] = True
+    cycle_turns = np.array([st.turns if isinstance(st, CycleStage) else 0 for st in programme.stages])
+    cycle_offset = np.concatenate([[0], np.cumsum(cycle_turns)])[:-1].astype(int)
+    n_cycles = int(cycle_turns.sum())
+    cycles = {
+        "work": np.full((size, n_cycles), np.nan),
+        "force_gap": np.full((size, n_cycles, n), np.nan),
+        "tangential_drift": np.full((size, n_cycles), np.nan),
+        "stage": np.repeat(np.arange(len(programme)), cycle_turns).astype(int),
+    }
+    cycle_start_work = np.zeros(size)
+    cycle_start_forces = np.zeros((size, n))
+    cycle_start_tangential = np.zeros(size)
     break_columns = np.zeros(len(INDICATOR_EVENTS), dtype=bool)
     if secondary_contacts == "activate":
         break_columns[event_column["secondary_contact"]] = True
@@ -432,6 +456,9 @@ def follow_cases(
                 dy, aux = _rhs(sub_go, st_go, y[gi], layout)
                 previous[gi] = _indicators(sub_go, st_go, y[gi], aux, layout)
                 record(gi, y[gi], aux)
+                cycle_start_work[gi] = y[gi, layout.work]
+                cycle_start_forces[gi] = aux.evaluation.forces
+                cycle_start_tangential[gi] = aux.evaluation.tangential[:, 0]
             index, k = index[zero_length], k + 1
 
     enter(np.arange(size), 0)
@@ -546,6 +573,7 @@ def follow_cases(
 
         cutting = change & (stop_table[stage_index[cases]] | break_columns[None, :])
         cutting[:, TARGET_COLUMN] = change[:, TARGET_COLUMN]
+        cutting[:, CYCLE_COLUMN] = change[:, CYCLE_COLUMN]
         cut_sigma = np.where(cutting, sigma, np.inf)
         cut_column = np.argmin(cut_sigma, axis=1)
         is_cut = np.isfinite(cut_sigma[np.arange(cases.size), cut_column])
@@ -606,12 +634,34 @@ def follow_cases(
                 flip = np.sign(ax_after.dlam) * np.sign(ax_before.dlam) < 0
                 st_a.orientation[closing[flip]] *= -1
                 stages.orientation[cases[closing[flip]]] *= -1
+            column_cut = cut_column[cut_rows]
+            turns_here = cycle_turns[stage_index[cases[cut_rows]]]
+            ends_cycle = (
+                ((column_cut == CYCLE_COLUMN) | (column_cut == TARGET_COLUMN))
+                & st_a.is_cycle[cut_rows]
+                & (st_a.cycles_done[cut_rows] < turns_here)
+            )
+            cyc = cut_rows[ends_cycle]
+            if cyc.size:
+                # One turn of a cycle stage closed: work, force gap, T drift.
+                _, ax_cyc = _rhs(sub_a.take(cyc), st_a.take(cyc), y_new[cyc], layout)
+                where = cases[cyc]
+                slot = cycle_offset[stage_index[where]] + st_a.cycles_done[cyc]
+                cycles["work"][where, slot] = y_new[cyc, layout.work] - cycle_start_work[where]
+                cycles["force_gap"][where, slot] = ax_cyc.evaluation.forces - cycle_start_forces[where]
+                cycles["tangential_drift"][where, slot] = ax_cyc.evaluation.tangential[:, 0] - cycle_start_tangential[where]
+                cycle_start_work[where] = y_new[cyc, layout.work]
+                cycle_start_forces[where] = ax_cyc.evaluation.forces
+                cycle_start_tangential[where] = ax_cyc.evaluation.tangential[:, 0]
+                st_a.cycles_done[cyc] += 1
+                stages.cycles_done[where] += 1
             b, s_ = sub_a.take(cut_rows), st_a.take(cut_rows)
             _, ax_cut = _rhs(b, s_, y_new[cut_rows], layout)
             ind_cut = _indicators(b, s_, y_new[cut_rows], ax_cut, layout)
-            # Keep the post-crossing sign of the column that cut, so a break
-            # point (secondary contact) is not detected twice.
-            ind_cut[np.arange(cut_rows.size), cut_column[cut_rows]] = indicators[cut_rows, cut_column[cut_rows]]
+            # Keep the post-crossing sign of a break column (secondary contact)
+            # so the same crossing is not detected twice.
+            brk = np.flatnonzero(break_columns[column_cut])
+            ind_cut[brk, column_cut[brk]] = indicators[cut_rows[brk], column_cut[brk]]
             indicators[cut_rows] = ind_cut
             aux.put(cut_rows, ax_cut)
         y[cases] = y_new
@@ -621,8 +671,9 @@ def follow_cases(
         record(cases, y_new, aux)
 
         # Stage ends: target reached, or a stop event.
-        target_hit = is_cut & (cut_column == TARGET_COLUMN)
-        stop_hit = is_cut & ~target_hit & stop_table[stage_index[cases], cut_column]
+        stop_hit = is_cut & (cut_column != TARGET_COLUMN) & stop_table[stage_index[cases], cut_column]
+        # A cut at (or a rounding error past) the target ends the stage too.
+        target_hit = is_cut & ~stop_hit & ((cut_column == TARGET_COLUMN) | (indicators[:, TARGET_COLUMN] >= 0))
         for column in np.unique(cut_column[stop_hit]):
             which = cases[stop_hit & (cut_column == column)]
             name = INDICATOR_EVENTS[column]
@@ -646,4 +697,5 @@ def follow_cases(
         message=message.astype(str),
         events=events,
         counters={"accepted": accepted_count, "rejected": rejected_count, "located": located_count},
+        cycles=cycles,
     )

@@ -13,7 +13,8 @@ secondary_contact      top-bottom and left-right gaps 2 l cos a - 1, 2 l sin a -
 turning_point          dlambda/ds, the driven quantity's rate along the path
 =====================  ==========================================================
 
-plus the stage target (lambda - lambda_end), located the same way.  A sign
+plus, located the same way, the end of each turn of a cycle stage
+(lambda - 2 pi (k + 1)) and the stage target (lambda - lambda_end).  A sign
 change over an accepted step is located by the Illinois variant of regula falsi
 on the step length sigma in (0, h), each evaluation re-taking the step from its
 start with length sigma (same integrator, same Newton projection), so the
@@ -31,7 +32,7 @@ from ncstab.paths.model import Evaluation
 from ncstab.paths.programme import EVENTS
 from ncstab.paths.tangent_field import StageArrays, control_matrix
 
-__all__ = ["INDICATOR_EVENTS", "INDICATOR_GAP", "TARGET_COLUMN", "indicator_values", "locate_sign_changes"]
+__all__ = ["CYCLE_COLUMN", "INDICATOR_EVENTS", "INDICATOR_GAP", "TARGET_COLUMN", "indicator_values", "locate_sign_changes"]
 
 #: Event name of every indicator column (two columns for the two secondary gaps).
 INDICATOR_EVENTS = (
@@ -42,13 +43,16 @@ INDICATOR_EVENTS = (
     "secondary_contact",
     "secondary_contact",
     "turning_point",
+    "cycle_end",
     "stage_target",
 )
 #: Which secondary gap a column watches (1 top-bottom, 2 left-right, 0 none).
-INDICATOR_GAP = (0, 0, 0, 0, 1, 2, 0, 0)
+INDICATOR_GAP = (0, 0, 0, 0, 1, 2, 0, 0, 0)
+#: Column of the end-of-cycle indicator (cycle stages: lambda - 2 pi (k + 1)).
+CYCLE_COLUMN = INDICATOR_EVENTS.index("cycle_end")
 #: Column of the stage-target indicator.
 TARGET_COLUMN = len(INDICATOR_EVENTS) - 1
-assert set(INDICATOR_EVENTS[:-1]) == set(EVENTS)
+assert set(INDICATOR_EVENTS) - {"cycle_end", "stage_target"} == set(EVENTS)
 
 
 def indicator_values(
@@ -71,6 +75,8 @@ def indicator_values(
     stiffness, gaps = evaluation.stiffness, evaluation.gaps
     control = control_matrix(evaluation.du_dv, evaluation.dF_dv, stage.force_controlled)
     target = (lam - stage.lam_end) * stage.target_sign
+    with np.errstate(invalid="ignore"):
+        cycle_end = np.where(stage.is_cycle, lam - 2 * np.pi * (stage.cycles_done + 1), np.nan)
     return np.column_stack(
         [
             det_K(stiffness),
@@ -80,6 +86,7 @@ def indicator_values(
             gaps[:, 0],
             gaps[:, 1],
             dlam,
+            cycle_end,
             target,
         ]
     )

@@ -160,6 +160,17 @@ class Path:
                 np.stack([r.counters["rejected"] for r in self.results]).reshape(shape).astype(np.int32),
             ),
         }
+        n_cycles = self.results[0].cycles["work"].shape[1] if self.results[0].cycles else 0
+        if n_cycles:
+            def cycle_array(key: str) -> np.ndarray:
+                array = np.stack([r.cycles[key] for r in self.results])
+                return array.reshape(shape + array.shape[2:])
+
+            work = cycle_array("work")
+            data["cycle_work"] = ([*sweep_dims, "cycle"], work)
+            data["cumulative_work"] = ([*sweep_dims, "cycle"], np.cumsum(work, axis=-1))
+            data["cycle_force_gap"] = ([*sweep_dims, "cycle", "dof"], cycle_array("force_gap"))
+            data["cycle_T_drift"] = ([*sweep_dims, "cycle"], cycle_array("tangential_drift"))
         for name, (dims, values) in list(data.items()):
             units, long_name, description = VARIABLES[name]
             if self.system.normal == "rigid" and name in ("F", "N", "T"):
@@ -202,6 +213,12 @@ class Path:
         }
         for name, values in self.grid.sweep.items():
             coords[name] = (name, values, _parameter_attrs(name))
+        if n_cycles:
+            coords["cycle"] = ("cycle", np.arange(1, n_cycles + 1, dtype=np.int32), {
+                "long_name": "cycle number", "description": "turns of the cycle stages, in programme order"})
+            units, long_name, description = VARIABLES["cycle_stage"]
+            coords["cycle_stage"] = ("cycle", self.results[0].cycles["stage"].astype(np.int32), {
+                "units": units, "long_name": long_name, "description": description})
         attrs = {
             "Conventions": "CF-1.10",
             "title": "ncstab path study",

@@ -76,6 +76,8 @@ class StageArrays:
         ``(B,)`` int: which rigid secondary contact is closed (0 none,
         1 top-bottom, 2 left-right); only the pure-shear limit uses it, and it
         carries over from stage to stage.
+    cycles_done
+        ``(B,)`` int: turns completed in the current cycle stage.
     """
 
     force_controlled: np.ndarray
@@ -90,6 +92,7 @@ class StageArrays:
     target_sign: np.ndarray
     orientation: np.ndarray
     blocked: np.ndarray
+    cycles_done: np.ndarray
 
     @classmethod
     def empty(cls, size: int, n: int) -> "StageArrays":
@@ -106,6 +109,7 @@ class StageArrays:
             target_sign=np.ones(size),
             orientation=np.ones(size),
             blocked=np.zeros(size, dtype=int),
+            cycles_done=np.zeros(size, dtype=int),
         )
 
     def take(self, index: np.ndarray) -> "StageArrays":

@@ -31,6 +31,11 @@ VARIABLES: dict[str, tuple[str, str, str]] = {
     "n_steps": ("1", "number of stored states", "stored states of each case; later steps are NaN padding"),
     "status": ("", "case status", "finished, stopped:<event>, or failed:<reason>"),
     "message": ("", "case status message", "what happened to the case, in words"),
+    "cycle_work": ("1", "work per contact over each closed cycle", "int F* . dDelta* / 2 over one turn of a cycle stage (seed Eq. 5), in units of k_n (2R)^2, integrated with the path to the integrator's accuracy; zero for hyperelastic laws (no Green's paradox)"),
+    "cumulative_work": ("1", "cumulative cycle work", "sum of cycle_work over the cycles completed so far"),
+    "cycle_force_gap": ("1", "force gap over each cycle", "F* at the end minus F* at the start of each turn of a cycle stage"),
+    "cycle_T_drift": ("1", "tangential force drift over each cycle", "T* at the end minus T* at the start of each turn; gamma times the loop integral of l* dalpha for Cundall-Strack"),
+    "cycle_stage": ("1", "stage of each cycle", "0-based loading stage each cycle belongs to"),
     "accepted_steps": ("1", "accepted integrator steps", "accepted arclength steps of the case"),
     "rejected_steps": ("1", "rejected integrator steps", "steps rejected by error control or Newton projection"),
 }
