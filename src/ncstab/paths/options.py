@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 __all__ = ["PathOptions", "SystemSpec", "SECONDARY_CONTACT_MODES", "NORMAL_MODES"]
 
 SECONDARY_CONTACT_MODES = ("activate", "ignore", "stop")
@@ -48,11 +50,13 @@ class PathOptions:
     def __post_init__(self) -> None:
         for name in ("rtol", "atol", "newton_tol", "initial_step", "min_step", "max_step", "event_tol"):
             value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and value > 0 and value < float("inf")):
+            number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+            if not (number and 0 < value < float("inf")):
                 raise ValueError(f"PathOptions.{name} must be a positive finite number, got {value!r}")
         for name in ("newton_max_iter", "max_steps"):
             value = getattr(self, name)
-            if not (isinstance(value, int) and value >= 1):
+            whole = isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+            if not (whole and value >= 1):
                 raise ValueError(f"PathOptions.{name} must be a positive integer, got {value!r}")
         if self.min_step > self.max_step:
             raise ValueError("PathOptions.min_step must not exceed max_step")
