@@ -79,9 +79,9 @@ class _Layout:
 def _rhs(batch: CaseBatch, stage: StageArrays, y: np.ndarray, layout: _Layout) -> tuple[np.ndarray, _Aux]:
     """dy/ds: oriented unit tangent, internal-variable rates, work rate."""
     v, lam, internal = y[:, layout.v], y[:, layout.lam], y[:, layout.internal]
-    evaluation = batch.evaluate(v, internal, stage.blocked)
+    evaluation = batch.evaluate(v, internal, stage.secondary_state)
     dv, du, dlam, _ = path_tangent(evaluation.du_dv, evaluation.dF_dv, stage, lam)
-    dinternal = batch.internal_rate(evaluation, dv, stage.blocked)
+    dinternal = batch.internal_rate(evaluation, dv, stage.secondary_state)
     dwork = 0.5 * np.sum(evaluation.forces * du, axis=-1)
     dy = np.concatenate([dv, dlam[:, None], dinternal, dwork[:, None]], axis=-1)
     return dy, _Aux(evaluation, dv, du, dlam)
@@ -104,7 +104,7 @@ def _project(
         st = stage.take(todo) if todo.size < y.shape[0] else stage
         v, lam = y[todo, layout.v], y[todo, layout.lam]
         with np.errstate(all="ignore"):
-            evaluation = sub.evaluate(v, y[todo, layout.internal], st.blocked)
+            evaluation = sub.evaluate(v, y[todo, layout.internal], st.secondary_state)
             residual = st.residual(evaluation.displacements, evaluation.forces, lam)
         size = np.max(np.abs(residual), axis=-1)
         ok = size <= options.newton_tol
@@ -308,6 +308,7 @@ def follow_cases(
     located_count = np.zeros(size, dtype=int)
     previous = np.full((size, len(INDICATOR_EVENTS)), np.nan)
     stages = StageArrays.empty(size, n)
+    stages.secondary_state[:] = batch.initial_secondary_state(y[:, layout.v])
     recorder = _Recorder(size)
     events = _empty_events(size, n)
 
@@ -387,12 +388,12 @@ def follow_cases(
             stage_index[index] = k
             sub = batch.take(index)
             v, internal = y[index][:, layout.v], y[index][:, layout.internal]
-            evaluation = sub.evaluate(v, internal, stages.blocked[index])
+            evaluation = sub.evaluate(v, internal, stages.secondary_state[index])
             u = evaluation.displacements
             current = {name: u[:, i] for i, name in enumerate(dofs)}
             current.update({name: evaluation.forces[:, i] for i, name in enumerate(forces)})
             arrays = StageArrays.empty(index.size, n)
-            arrays.blocked = stages.blocked[index].copy()
+            arrays.secondary_state = stages.secondary_state[index].copy()
             bad = np.zeros(index.size, dtype=bool)
             reasons = np.full(index.size, "", dtype=object)
             if isinstance(stage, Stage):
@@ -408,10 +409,18 @@ def follow_cases(
                     elif controls[name] != CURRENT:
                         nominal = resolve(controls[name], index, current)
                         mismatch = np.abs(nominal - current[name]) > 1e-9 * (1 + np.abs(nominal))
-                        reasons[mismatch] = (
+                        hint = np.where(
+                            stages.secondary_state[index] != 0,
+                            " (secondary-contact springs already act at this state: with "
+                            "secondary_contacts = 'activate' the grains overlap at rest unless "
+                            "alpha0 is in [pi/6, pi/3])",
+                            "",
+                        )
+                        text = (
                             f"stage {k + 1} holds {name} = {controls[name]} but {name} is not at that "
                             "value when the stage starts; add a stage that drives it there first"
                         )
+                        reasons[mismatch] = np.char.add(text, hint[mismatch].astype(str)).astype(object)
                         bad |= mismatch
                 start = current[driven_name]
                 arrays.lam_end = resolve(target, index, current)
@@ -616,22 +625,29 @@ def follow_cases(
             y_new[cut_rows] = located_y[cut_rows, cut_column[cut_rows]]
             closing = cut_rows[break_columns[cut_column[cut_rows]]]
             if closing.size:
-                # A secondary contact closed: the batch may change coordinates
-                # (rigid blocking); the stage arrays carry the new mode.
+                # A secondary gap crossed zero: the batch switches its springs
+                # (or, rigid, its coordinates); the stage arrays carry the state.
                 gap = np.asarray(INDICATOR_GAP)[cut_column[closing]]
-                block = st_a.blocked[closing].copy()
+                block = st_a.secondary_state[closing].copy()
                 yy = y_new[closing]
                 b_close, s_close = sub_a.take(closing), st_a.take(closing)
                 _, ax_before = _rhs(b_close, s_close, yy, layout)
                 b_close.close_contact(yy, block, gap, layout)
                 y_new[closing] = yy
-                st_a.blocked[closing] = block
-                stages.blocked[cases[closing]] = block
-                # New coordinates may flip the cofactor tangent: keep lambda's direction.
-                s_close.blocked = block
-                s_close.orientation = np.ones(closing.size)
+                st_a.secondary_state[closing] = block
+                stages.secondary_state[cases[closing]] = block
+                # The switch (new springs, or new coordinates when blocking) may
+                # flip the cofactor tangent: keep the direction of motion in
+                # (u, F, lambda).
+                s_close.secondary_state = block
+                s_close.orientation = st_a.orientation[closing].copy()
                 _, ax_after = _rhs(b_close, s_close, yy, layout)
-                flip = np.sign(ax_after.dlam) * np.sign(ax_before.dlam) < 0
+
+                def motion(ax: _Aux) -> np.ndarray:
+                    df = (ax.evaluation.dF_dv @ ax.dv[:, :, None])[:, :, 0]
+                    return np.concatenate([ax.du, df, ax.dlam[:, None]], axis=-1)
+
+                flip = np.sum(motion(ax_after) * motion(ax_before), axis=-1) < 0
                 st_a.orientation[closing[flip]] *= -1
                 stages.orientation[cases[closing[flip]]] *= -1
             column_cut = cut_column[cut_rows]

@@ -143,26 +143,42 @@ class CaseBatch:
         """State coordinates of the unloaded state: u = 0, ``(B, n)``."""
         return np.zeros((self.size, self.n_dof))
 
-    def evaluate(self, u: np.ndarray, internal: np.ndarray, blocked: np.ndarray | None = None) -> Evaluation:
+    def initial_secondary_state(self, u: np.ndarray) -> np.ndarray:
+        """Bits of the secondary springs already compressed at ``u`` (bit 0 top-bottom, bit 1 left-right)."""
+        if not self.activate_secondary:
+            return np.zeros(u.shape[0], dtype=int)
+        overlap = 1.0 - 2.0 * np.stack(
+            [np.cos(self.system.parameters["alpha0"]) - u[:, 0], np.sin(self.system.parameters["alpha0"]) - u[:, 1]], -1
+        ) * np.ones((u.shape[0], 1))
+        return (overlap[:, 0] > 0).astype(int) + 2 * (overlap[:, 1] > 0).astype(int)
+
+    def evaluate(self, u: np.ndarray, internal: np.ndarray, secondary_state: np.ndarray | None = None) -> Evaluation:
         """Forces (seed Eq. 4) and tangent operator (Eq. 30-34) at a batch of states.
 
-        The state coordinates are the displacements; ``blocked`` is unused
-        (secondary contacts are springs here, always present).
+        The state coordinates are the displacements.  ``secondary_state`` says
+        which secondary springs act (bits; default: those compressed at ``u``):
+        within a step the set is frozen, so the field is smooth; the engine
+        switches it where a gap crossing is located.
         """
         q, normal, tangential = self.contact_state(u, internal)
         forces = self.system.generalized_forces(q, normal, tangential)
         stiffness = tangent_operator_at_contact_state(self.system, self.law, q, normal, tangential)
         if self.activate_secondary:
-            forces = forces + self.system.secondary_forces(u, self.kappa)
-            stiffness = stiffness + self.system.secondary_stiffness(u, self.kappa)
+            state = self.initial_secondary_state(u) if secondary_state is None else secondary_state
+            active = np.stack([(state & 1) > 0, (state & 2) > 0], -1)
+            forces = forces + self.system.secondary_forces(u, self.kappa, active)
+            stiffness = stiffness + self.system.secondary_stiffness(u, self.kappa, active)
         identity = np.broadcast_to(np.eye(self.n_dof), stiffness.shape)
         gaps = self.system.secondary_gaps(q)
         return Evaluation(q, normal, tangential, u, forces, stiffness, identity, stiffness, gaps)
 
-    def close_contact(self, y: np.ndarray, blocked: np.ndarray, gap: np.ndarray, layout: object) -> None:
-        """A secondary contact closed: nothing to change, the springs are always present."""
+    def close_contact(self, y: np.ndarray, secondary_state: np.ndarray, gap: np.ndarray, layout: object) -> None:
+        """A secondary gap crossed zero: switch that spring on (closing) or off (opening), in place."""
+        secondary_state ^= np.where(gap == 1, 1, np.where(gap == 2, 2, 0))
 
-    def internal_rate(self, evaluation: Evaluation, du: np.ndarray, blocked: np.ndarray | None = None) -> np.ndarray:
+    def internal_rate(
+        self, evaluation: Evaluation, du: np.ndarray, secondary_state: np.ndarray | None = None
+    ) -> np.ndarray:
         """d(internal)/ds along du/ds: dT = C_Tl dl + C_Ta dalpha (seed Eq. 13), (B, n_c)."""
         if self.n_internal == 0:
             return np.zeros(du.shape[:-1] + (0,))

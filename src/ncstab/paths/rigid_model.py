@@ -77,6 +77,10 @@ class RigidCaseBatch:
         law = Law(self.law.definition, {k: (v[index] if np.ndim(v) else v) for k, v in self.law.parameters.items()})
         return RigidCaseBatch(DiamondChain(alpha0=alpha0), law, self.activate_secondary)
 
+    def initial_secondary_state(self, v: np.ndarray) -> np.ndarray:
+        """The chain starts free (no blocking contact)."""
+        return np.zeros(v.shape[0], dtype=int)
+
     def initial_state(self) -> np.ndarray:
         """Unloaded state: alpha = alpha0, Nhat = 0."""
         alpha0 = np.broadcast_to(self._alpha0, (self.size,))

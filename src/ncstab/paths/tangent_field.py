@@ -72,10 +72,13 @@ class StageArrays:
         ``(B,)`` +1 if lambda increases toward its target, -1 otherwise.
     orientation
         ``(B,)`` sign applied to the cofactor tangent, fixed at stage entry.
-    blocked
-        ``(B,)`` int: which rigid secondary contact is closed (0 none,
-        1 top-bottom, 2 left-right); only the pure-shear limit uses it, and it
-        carries over from stage to stage.
+    secondary_state
+        ``(B,)`` int: which secondary contacts are closed, frozen within a step
+        and switched only where a gap crossing is located (so every step
+        integrates a smooth field).  Deformable system: bit 0 top-bottom, bit 1
+        left-right springs active.  Pure-shear limit: 0 free, 1 blocked by the
+        top-bottom contact, 2 by the left-right one.  Carries over from stage
+        to stage.
     cycles_done
         ``(B,)`` int: turns completed in the current cycle stage.
     """
@@ -91,7 +94,7 @@ class StageArrays:
     lam_end: np.ndarray
     target_sign: np.ndarray
     orientation: np.ndarray
-    blocked: np.ndarray
+    secondary_state: np.ndarray
     cycles_done: np.ndarray
 
     @classmethod
@@ -108,7 +111,7 @@ class StageArrays:
             lam_end=np.zeros(size),
             target_sign=np.ones(size),
             orientation=np.ones(size),
-            blocked=np.zeros(size, dtype=int),
+            secondary_state=np.zeros(size, dtype=int),
             cycles_done=np.zeros(size, dtype=int),
         )
 

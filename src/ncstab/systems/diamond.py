@@ -150,7 +150,7 @@ class DiamondChain:
     def secondary_gap_names(self) -> tuple[str, str]:
         return ("top_bottom", "left_right")
 
-    def secondary_forces(self, u: np.ndarray, kappa: np.ndarray) -> np.ndarray:
+    def secondary_forces(self, u: np.ndarray, kappa: np.ndarray, active: np.ndarray | None = None) -> np.ndarray:
         """Generalized forces of the secondary contacts once they touch, ``(..., 2)``.
 
         A frictionless unilateral normal spring of stiffness kappa k_n acts
@@ -159,15 +159,22 @@ class DiamondChain:
         (d = 2 (sin alpha0 - Delta_2)).  With its energy
         kappa <1 - d>^2 / 2 and the per-contact external work F . du / 2
         (seed Eq. 5, four primary contacts), it adds kappa <1 - d> to F_1
-        (resp. F_2).
+        (resp. F_2).  ``active`` (``(..., 2)`` bool) forces which springs act
+        (then kappa (1 - d) without the bracket: the smooth branch an
+        event-driven integrator follows within a step); by default those with
+        1 - d > 0.
         """
         overlap = self._secondary_overlaps(u)
-        return np.asarray(kappa)[..., None] * np.maximum(overlap, 0.0)
+        if active is None:
+            active = overlap > 0.0
+        return np.asarray(kappa)[..., None] * np.where(active, overlap, 0.0)
 
-    def secondary_stiffness(self, u: np.ndarray, kappa: np.ndarray) -> np.ndarray:
-        """Tangent of :meth:`secondary_forces`: diag(2 kappa H(1 - d)), ``(..., 2, 2)``."""
+    def secondary_stiffness(self, u: np.ndarray, kappa: np.ndarray, active: np.ndarray | None = None) -> np.ndarray:
+        """Tangent of :meth:`secondary_forces`: diag(2 kappa [spring active]), ``(..., 2, 2)``."""
         overlap = self._secondary_overlaps(u)
-        diagonal = 2.0 * np.asarray(kappa)[..., None] * (overlap > 0.0)
+        if active is None:
+            active = overlap > 0.0
+        diagonal = 2.0 * np.asarray(kappa)[..., None] * active
         return diagonal[..., :, None] * np.eye(2)
 
     def _secondary_overlaps(self, u: np.ndarray) -> np.ndarray:
