@@ -12,6 +12,11 @@ from ncstab.operators.indicators import (
     skew_part,
     symmetric_part,
 )
+from ncstab.operators.second_order_work import (
+    directional_second_order_work,
+    second_order_work_form,
+    unstable_cone,
+)
 from ncstab.operators.tangent import (
     conjugate_tangent,
     contact_forces,
@@ -25,6 +30,7 @@ __all__ = [
     "conjugate_tangent",
     "contact_forces",
     "det_K",
+    "directional_second_order_work",
     "flutter_discriminant",
     "force_controlled_mask",
     "generalized_forces",
@@ -33,9 +39,11 @@ __all__ = [
     "mixed_control_stiffness",
     "normalized_second_order_work",
     "second_order_work",
+    "second_order_work_form",
     "skew_part",
     "symmetric_part",
     "tangent_operator",
     "tangent_operator_at_contact_state",
     "tangent_operator_at_forces",
+    "unstable_cone",
 ]
