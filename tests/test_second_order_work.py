@@ -79,3 +79,34 @@ def test_cone_limits_and_batch_shapes():
         np.testing.assert_allclose(width[index], unstable_cone(batch[index])[0], atol=0)
     with pytest.raises(ValueError, match="2x2"):
         unstable_cone(np.eye(3))
+
+
+def test_path_dataset_directional_map_and_cone():
+    """to_dataset(directions=M): d2W_dir is e.K e with the stored K, the cone is
+    empty exactly while hill > 0, and its bounds are roots along the path."""
+    from ncstab.paths import SystemSpec, follow
+
+    path = follow(
+        SystemSpec(secondary_contacts="ignore"),
+        ["weakly_hypoelastic"],
+        [{"hold": {"F1": 0.0}, "drive": {"F2": 0.75}}, {"hold": {"F2": "current"}, "drive": {"D1": 0.6}}],
+        {"gamma": 0.5},
+    )
+    ds = path.to_dataset(directions=36).isel(law=0)
+    n = int(ds.n_steps)
+    K = ds.K.values[:n]
+    theta = ds.theta.values
+    e = np.stack([np.cos(theta), np.sin(theta)], -1)
+    expected = np.einsum("ti,sij,tj->st", e, K, e)
+    np.testing.assert_allclose(ds.d2W_dir.values[:n], expected, rtol=0, atol=TOL)
+    hill = ds.hill.values[:n]
+    width = ds.cone_width.values[:n]
+    assert np.all(width[hill > 1e-12] == 0) and np.all(width[hill < -1e-12] > 0)
+    assert (hill < 0).any()  # this path loses Hill's condition (s ~ 2.32)
+    has_cone = np.isfinite(ds.cone_lower.values[:n])
+    for bound in ("cone_lower", "cone_upper"):
+        b = ds[bound].values[:n][has_cone]
+        roots = np.einsum("si,sij,sj->s", np.stack([np.cos(b), np.sin(b)], -1), K[has_cone],
+                          np.stack([np.cos(b), np.sin(b)], -1))
+        np.testing.assert_allclose(roots, 0.0, rtol=0, atol=TOL)
+    assert ds.d2W_dir.attrs["units"] == "1" and ds.theta.attrs["units"] == "rad"

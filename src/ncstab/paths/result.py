@@ -94,12 +94,20 @@ class Path:
         flat = int(np.ravel_multi_index(index, self.grid.shape)) if index else 0
         return result, flat
 
-    def to_dataset(self) -> "xarray.Dataset":
+    def to_dataset(self, directions: int | None = None) -> "xarray.Dataset":
         """The labelled Dataset of ARCHITECTURE.md ("Dataset of a path study").
 
         Dimensions: ``law``, the swept parameters in order, then ``step``,
         ``dof``, ``i``, ``j``.  Paths of different lengths are NaN-padded
         along ``step``; ``n_steps`` gives each case's length.
+
+        Parameters
+        ----------
+        directions
+            If given (M >= 4), add the directional second-order work map
+            ``d2W_dir`` (dims ..., step, theta) on M directions theta in
+            [0, pi) (d2W is pi-periodic), and per step the unstable cone
+            ``cone_width``, ``cone_lower``, ``cone_upper`` (exact roots).
         """
         import xarray as xr
 
@@ -160,6 +168,17 @@ class Path:
                 np.stack([r.counters["rejected"] for r in self.results]).reshape(shape).astype(np.int32),
             ),
         }
+        if directions is not None:
+            from ncstab.operators.second_order_work import directional_second_order_work, unstable_cone
+
+            if int(directions) < 4:
+                raise ValueError(f"directions must be at least 4, got {directions}")
+            theta = np.linspace(0.0, np.pi, int(directions), endpoint=False)
+            data["d2W_dir"] = (step_dims + ["theta"], directional_second_order_work(K, theta))
+            width, lower, upper = unstable_cone(K)
+            data["cone_width"] = (step_dims, width)
+            data["cone_lower"] = (step_dims, lower)
+            data["cone_upper"] = (step_dims, upper)
         n_cycles = self.results[0].cycles["work"].shape[1] if self.results[0].cycles else 0
         if n_cycles:
             def cycle_array(key: str) -> np.ndarray:
@@ -213,6 +232,10 @@ class Path:
         }
         for name, values in self.grid.sweep.items():
             coords[name] = (name, values, _parameter_attrs(name))
+        if directions is not None:
+            coords["theta"] = ("theta", theta, {
+                "units": "rad", "long_name": "loading direction theta",
+                "description": "direction of du = (cos theta, sin theta) in the (Delta_1*, Delta_2*) plane; d2W is pi-periodic"})
         if n_cycles:
             coords["cycle"] = ("cycle", np.arange(1, n_cycles + 1, dtype=np.int32), {
                 "long_name": "cycle number", "description": "turns of the cycle stages, in programme order"})

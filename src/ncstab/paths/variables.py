@@ -36,6 +36,10 @@ VARIABLES: dict[str, tuple[str, str, str]] = {
     "cycle_force_gap": ("1", "force gap over each cycle", "F* at the end minus F* at the start of each turn of a cycle stage"),
     "cycle_T_drift": ("1", "tangential force drift over each cycle", "T* at the end minus T* at the start of each turn; gamma times the loop integral of l* dalpha for Cundall-Strack"),
     "cycle_stage": ("1", "stage of each cycle", "0-based loading stage each cycle belongs to"),
+    "d2W_dir": ("1", "directional second-order work", "du . K du for unit displacement directions du = (cos theta, sin theta) in the (Delta_1*, Delta_2*) plane; its minimum over theta is hill"),
+    "cone_width": ("rad", "width of the unstable cone", "total angle of displacement directions (over the full circle) where the second-order work is negative; 0 while Hill's condition holds"),
+    "cone_lower": ("rad", "lower bound of the unstable cone", "exact root of du . K du = 0 bounding one of the two opposite unstable cones (the other is shifted by pi); NaN if no cone"),
+    "cone_upper": ("rad", "upper bound of the unstable cone", "exact root of du . K du = 0 bounding one of the two opposite unstable cones; NaN if no cone"),
     "accepted_steps": ("1", "accepted integrator steps", "accepted arclength steps of the case"),
     "rejected_steps": ("1", "rejected integrator steps", "steps rejected by error control or Newton projection"),
 }
