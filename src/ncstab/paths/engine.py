@@ -702,8 +702,10 @@ def follow_cases(
         )
         if target_hit.any():
             finished_stage = cases[target_hit]
-            for k in np.unique(stage_index[finished_stage]):
-                enter(finished_stage[stage_index[finished_stage] == k], int(k) + 1)
+            # Stage indices before any case enters its next stage (enter() updates them).
+            finished_index = stage_index[finished_stage].copy()
+            for k in np.unique(finished_index):
+                enter(finished_stage[finished_index == k], int(k) + 1)
 
     steps, counts = recorder.assemble()
     return CaseResult(

@@ -48,6 +48,9 @@ INDICATOR_EVENTS = (
 )
 #: Which secondary gap a column watches (1 top-bottom, 2 left-right, 0 none).
 INDICATOR_GAP = (0, 0, 0, 0, 1, 2, 0, 0, 0)
+#: Relative size below which an indicator built on K is taken as zero (no sign):
+#: a few hundred roundings of the entries of K.
+SIGN_NOISE = 1e-13
 #: Column of the end-of-cycle indicator (cycle stages: lambda - 2 pi (k + 1)).
 CYCLE_COLUMN = INDICATOR_EVENTS.index("cycle_end")
 #: Column of the stage-target indicator.
@@ -74,15 +77,23 @@ def indicator_values(
     """
     stiffness, gaps = evaluation.stiffness, evaluation.gaps
     control = control_matrix(evaluation.du_dv, evaluation.dF_dv, stage.force_controlled)
+    with np.errstate(invalid="ignore"):
+        scale = np.nanmax(np.abs(np.concatenate([stiffness, control], axis=-1)), axis=(-2, -1))
+    scale = np.where(np.isfinite(scale) & (scale > 0), scale, 1.0)
     target = (lam - stage.lam_end) * stage.target_sign
     with np.errstate(invalid="ignore"):
         cycle_end = np.where(stage.is_cycle, lam - 2 * np.pi * (stage.cycles_done + 1), np.nan)
+    def significant(value: np.ndarray, size: np.ndarray) -> np.ndarray:
+        # Values within rounding of zero carry no sign: K = 2I (gamma = 1 at
+        # rest) has a flutter discriminant of +-1e-31 that must not be an event.
+        return np.where(np.abs(value) <= SIGN_NOISE * size, 0.0, value)
+
     return np.column_stack(
         [
-            det_K(stiffness),
-            hill_eigenvalue(stiffness),
-            det_K(control),
-            flutter_discriminant(stiffness),
+            significant(det_K(stiffness), scale**2),
+            significant(hill_eigenvalue(stiffness), scale),
+            significant(det_K(control), scale**2),
+            significant(flutter_discriminant(stiffness), scale**2),
             gaps[:, 0],
             gaps[:, 1],
             dlam,

@@ -1,0 +1,129 @@
+"""Draw the figures of a path Dataset to PNG files."""
+
+from __future__ import annotations
+
+import os
+import uuid
+from collections.abc import Iterable
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+from matplotlib import rc_context
+
+from ncstab.plotting.figures import FIGURE_KINDS
+from ncstab.plotting.style import RC_PARAMS
+
+__all__ = ["DEFAULT_KINDS", "draw_figures", "figure_kinds"]
+
+#: Kinds drawn when neither the call nor the Dataset names any.
+DEFAULT_KINDS = ("load_displacement", "load_rotation")
+
+
+def figure_kinds(dataset: xr.Dataset, kinds: Iterable[str] | str | None = None) -> list[str]:
+    """The figure kinds to draw, validated.
+
+    Parameters
+    ----------
+    dataset
+        Its ``figures`` attribute (comma-separated names, or a list of names)
+        gives the kinds when ``kinds`` is None.
+    kinds
+        Kind names, or one comma-separated string.
+
+    Returns
+    -------
+    list of str
+        Names in :data:`FIGURE_KINDS`, in the given order, without repeats.
+
+    Raises
+    ------
+    ValueError
+        For a name not in :data:`FIGURE_KINDS`; the message names it and lists
+        the kinds there are.
+    """
+    if kinds is None:
+        kinds = dataset.attrs.get("figures")
+        if kinds is None or (isinstance(kinds, str) and not kinds.strip()):
+            kinds = DEFAULT_KINDS
+    if isinstance(kinds, str):
+        kinds = kinds.split(",")
+    names = []
+    for kind in np.atleast_1d(np.asarray(list(kinds), dtype=object)).tolist():
+        name = str(kind).strip()
+        if not name:
+            continue
+        if name not in FIGURE_KINDS:
+            raise ValueError(
+                f"unknown figure kind {name!r}; the kinds are: {', '.join(FIGURE_KINDS)}"
+            )
+        if name not in names:
+            names.append(name)
+    return names
+
+
+def draw_figures(
+    dataset: xr.Dataset,
+    directory: str | os.PathLike[str],
+    kinds: Iterable[str] | str | None = None,
+    stem: str | None = None,
+    dpi: int = 200,
+) -> list[Path]:
+    """Draw figures of a path Dataset as PNG files ``<stem>_<kind>.png``.
+
+    Parameters
+    ----------
+    dataset
+        A path Dataset (:meth:`ncstab.paths.Path.to_dataset`, or an archive
+        read back with ``ncstab.studies.open_study``).
+    directory
+        Where to write; created if missing.
+    kinds
+        Names in :data:`FIGURE_KINDS` (or one comma-separated string).  By
+        default the Dataset's ``figures`` attribute, else
+        ``["load_displacement", "load_rotation"]``.
+    stem
+        File name stem; by default the Dataset's ``study_name`` attribute,
+        else ``"ncstab"``.
+    dpi
+        Resolution of the PNG files.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The files written, in the order of ``kinds``.
+
+    Raises
+    ------
+    ValueError
+        For an unknown kind (before anything is drawn).
+
+    Notes
+    -----
+    Each file is written to a temporary name in ``directory`` and renamed,
+    so a reader never sees half a PNG.  Figures are not pyplot figures: no
+    window opens and nothing stays registered once the call returns.
+    """
+    names = figure_kinds(dataset, kinds)
+    stem = stem or str(dataset.attrs.get("study_name") or "") or "ncstab"
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    written = []
+    for name in names:
+        target = directory / f"{stem}_{name}.png"
+        figure = FIGURE_KINDS[name](dataset)
+        # A fresh name in the same directory (so os.replace is atomic), opened
+        # exclusively, with the permissions the umask gives any new file.
+        temporary = directory / f".{target.name}.{os.getpid()}.{uuid.uuid4().hex[:12]}.tmp"
+        try:
+            with open(temporary, "xb") as stream, rc_context(RC_PARAMS):
+                figure.savefig(stream, format="png", dpi=dpi)
+            os.replace(temporary, target)
+        except BaseException:
+            if os.path.exists(temporary):
+                os.unlink(temporary)
+            raise
+        finally:
+            figure.clear()
+        written.append(target)
+    return written

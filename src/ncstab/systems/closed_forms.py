@@ -1,0 +1,413 @@
+"""Closed forms of the seed for the diamond chain (Challamel et al. 2022).
+
+Vectorised numpy functions of the branch orientation ``alpha`` (rad): every
+argument broadcasts against the others, like a numpy ufunc.  Forces are
+dimensionless, in units of ``2R k_n`` (seed Eq. 37), except in the pure-shear
+limit (rigid normal, ``k_n -> infinity``) where they are in units of
+``2R k_t`` (seed Eq. 62).  Lengths and displacements are in units of ``2R``.
+
+These are the seed's hand-derived results, written once here so that tests
+and figures (closed-form overlays) share them:
+
+========================================  =====================================
+function                                  seed equations
+========================================  =====================================
+:func:`mcnamara_load_rotation`            (48), (49), (52), (53)
+:func:`mcnamara_branch_length`            (46), first line
+:func:`diamond_displacements`             (3), (46) third line
+:func:`mcnamara_turning_alpha`            double root of (48)
+:func:`turco_load_rotation`               (56), (57), (58)
+:func:`turco_branch_length`               (55), first line
+:func:`pure_shear_load_rotation`          (62), (65), (66)
+:func:`pure_shear_displacement`           (61), (64)
+:func:`pure_shear_blocking_alpha`         (66), (67), (68)
+:func:`pure_shear_max_displacement`       (67), (68)
+========================================  =====================================
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+from scipy.optimize import brentq
+
+__all__ = [
+    "PURE_SHEAR_MODELS",
+    "diamond_displacements",
+    "mcnamara_branch_length",
+    "mcnamara_load_rotation",
+    "mcnamara_turning_alpha",
+    "pure_shear_blocking_alpha",
+    "pure_shear_displacement",
+    "pure_shear_load_rotation",
+    "pure_shear_max_displacement",
+    "turco_branch_length",
+    "turco_load_rotation",
+]
+
+#: Shear spring models of the pure-shear limit: rotational shear springs
+#: (McNamara et al. 2008; also the hypoelastic laws, seed Eq. 60) and
+#: translational shear springs (Turco et al. 2019, seed Eq. 63).
+PURE_SHEAR_MODELS = ("rotational", "translational")
+
+
+def _check_branch(branch: int) -> float:
+    if branch not in (-1, 1):
+        raise ValueError(f"branch must be -1 or +1, got {branch!r}")
+    return float(branch)
+
+
+def _check_model(model: str) -> str:
+    if model not in PURE_SHEAR_MODELS:
+        raise ValueError(f"model must be one of {PURE_SHEAR_MODELS}, got {model!r}")
+    return model
+
+
+def _sqrt_or_nan(delta: np.ndarray) -> np.ndarray:
+    """sqrt where delta >= 0, NaN elsewhere (without a RuntimeWarning)."""
+    return np.sqrt(np.where(delta >= 0, delta, np.nan))
+
+
+# --- McNamara et al. (2008): shear rotational springs ---------------------------------------
+
+
+def mcnamara_load_rotation(
+    alpha: ArrayLike, gamma: ArrayLike, alpha0: ArrayLike, F2: ArrayLike = 0.0, branch: int = -1
+) -> np.ndarray:
+    r"""Load-rotation curve F1*(alpha) of the McNamara chain at constant F2*.
+
+    Seed Eq. (53), the roots of the quadratic Eq. (52):
+
+    .. math::
+
+        F_1^* = \frac{b \pm \sqrt{\delta}}{\sin\alpha\cos\alpha},\quad
+        b = \sin\alpha - \tfrac{F_2^*}{2} + F_2^*\cos^2\alpha,\quad
+        \delta = b^2 + 2\cos\alpha\sin\alpha\,
+        \bigl[-F_2^*\cos\alpha\,(1 - \tfrac{F_2^*}{2}\sin\alpha)
+        + 2\gamma(\alpha_0 - \alpha)\bigr].
+
+    For ``F2 = 0`` it reduces to Eq. (48), and ``branch=-1`` to Eq. (49).
+
+    Parameters
+    ----------
+    alpha : array_like
+        Branch orientation (rad), any shape.
+    gamma : array_like
+        Stiffness ratio k_t/k_n, broadcast against ``alpha``.
+    alpha0 : array_like
+        Initial orientation (rad), broadcast against ``alpha``.
+    F2 : array_like, optional
+        Constant lateral force F2* (units of 2R k_n).
+    branch : {-1, +1}
+        Sign before the square root.  -1 is the branch through the state
+        reached from the unloaded configuration (F1* = 0 at alpha = alpha0
+        when F2 = 0); +1 is the other branch, which the path joins past the
+        maximum of alpha (seed Figs. 3-5).
+
+    Returns
+    -------
+    ndarray
+        F1*, broadcast shape of the inputs; NaN where the discriminant
+        ``delta`` is negative (no equilibrium at that alpha).
+    """
+    branch_sign = _check_branch(branch)
+    alpha, gamma, alpha0, F2 = (np.asarray(a, dtype=float) for a in (alpha, gamma, alpha0, F2))
+    s, c = np.sin(alpha), np.cos(alpha)
+    b = s - F2 / 2 + F2 * c**2
+    delta = b**2 + 2 * c * s * (-F2 * c * (1 - F2 / 2 * s) + 2 * gamma * (alpha0 - alpha))
+    return (b + branch_sign * _sqrt_or_nan(delta)) / (s * c)
+
+
+def mcnamara_branch_length(alpha: ArrayLike, F1: ArrayLike, F2: ArrayLike = 0.0) -> np.ndarray:
+    r"""Branch length l* of the McNamara chain at equilibrium.
+
+    Seed Eq. (46), first line (from N* = -(l* - 1), Eq. 43-44):
+    :math:`l^* = 1 - \tfrac12 (F_1^*\cos\alpha + F_2^*\sin\alpha)`.
+
+    Parameters
+    ----------
+    alpha : array_like
+        Branch orientation (rad).
+    F1, F2 : array_like
+        Generalized forces F1*, F2* (units of 2R k_n), broadcast against alpha.
+
+    Returns
+    -------
+    ndarray
+        l* = l/(2R), broadcast shape of the inputs.
+    """
+    alpha, F1, F2 = (np.asarray(a, dtype=float) for a in (alpha, F1, F2))
+    return 1 - (F1 * np.cos(alpha) + F2 * np.sin(alpha)) / 2
+
+
+def diamond_displacements(
+    alpha: ArrayLike, l: ArrayLike, alpha0: ArrayLike
+) -> tuple[np.ndarray, np.ndarray]:
+    r"""Generalized displacements of the diamond from its branch (alpha, l*).
+
+    Seed Eq. (3) in dimensionless form (Eq. 37), the third line of Eq. (46):
+    :math:`\Delta_1^* = \cos\alpha_0 - l^*\cos\alpha`,
+    :math:`\Delta_2^* = \sin\alpha_0 - l^*\sin\alpha`.
+
+    Parameters
+    ----------
+    alpha : array_like
+        Branch orientation (rad).
+    l : array_like
+        Branch length l* = l/(2R).
+    alpha0 : array_like
+        Initial orientation (rad).
+
+    Returns
+    -------
+    (D1, D2) : tuple of ndarray
+        Delta_1*, Delta_2*, broadcast shape of the inputs.
+    """
+    alpha, l, alpha0 = (np.asarray(a, dtype=float) for a in (alpha, l, alpha0))
+    return np.cos(alpha0) - l * np.cos(alpha), np.sin(alpha0) - l * np.sin(alpha)
+
+
+def _turning_alpha_scalar(gamma: float, alpha0: float) -> float:
+    """First root of tan(a) - 4 gamma (a - a0) in (a0, pi/2), or NaN."""
+    if not (np.isfinite(gamma) and np.isfinite(alpha0)) or gamma <= 0 or not 0 < alpha0 < np.pi / 2:
+        return np.nan
+
+    def g(a: float) -> float:
+        return np.tan(a) - 4 * gamma * (a - alpha0)
+
+    # g(alpha0) = tan(alpha0) > 0 and g -> +inf at pi/2; g is convex on
+    # (0, pi/2) with its minimum where cos^2(a) = 1/(4 gamma).  A root exists
+    # iff that minimum lies beyond alpha0 and is negative; the first root is
+    # bracketed by (alpha0, minimum).
+    if 4 * gamma <= 1:
+        return np.nan
+    a_min = float(np.arccos(1 / (2 * np.sqrt(gamma))))
+    if a_min <= alpha0 or g(a_min) >= 0:
+        return np.nan
+    return float(brentq(g, alpha0, a_min, xtol=1e-15, rtol=4 * np.finfo(float).eps, maxiter=200))
+
+
+def mcnamara_turning_alpha(gamma: ArrayLike, alpha0: ArrayLike) -> np.ndarray:
+    r"""Maximum of alpha on the McNamara load-rotation branch, F2* = 0.
+
+    The two branches of seed Eq. (48) meet where their discriminant vanishes,
+    :math:`\tan\alpha = 4\gamma(\alpha - \alpha_0)`: the path through the
+    unloaded state (Eq. 49) reaches its largest alpha there and goes on along
+    the + branch (seed Figs. 3-5, 8: only for gamma large enough).  There
+    F1* = 1/cos(alpha) and, by Eq. (46), l* = 1/2.
+
+    Solved by :func:`scipy.optimize.brentq` on (alpha0, pi/2).
+
+    Parameters
+    ----------
+    gamma : array_like
+        Stiffness ratio k_t/k_n.
+    alpha0 : array_like
+        Initial orientation (rad), in (0, pi/2); broadcast against gamma.
+
+    Returns
+    -------
+    ndarray
+        The turning alpha (rad), broadcast shape of the inputs (a 0-d array
+        for scalars); NaN where the branch has no maximum of alpha in
+        (alpha0, pi/2) (gamma <= 1/4 always; gamma below about 1.55 at alpha0 = pi/4).
+    """
+    gamma, alpha0 = np.broadcast_arrays(
+        np.asarray(gamma, dtype=float), np.asarray(alpha0, dtype=float)
+    )
+    out = np.empty(gamma.shape)
+    for index in np.ndindex(gamma.shape):
+        out[index] = _turning_alpha_scalar(float(gamma[index]), float(alpha0[index]))
+    return out
+
+
+# --- Turco et al. (2019): shear translational springs ---------------------------------------
+
+
+def turco_load_rotation(
+    alpha: ArrayLike, gamma: ArrayLike, alpha0: ArrayLike, branch: int = -1
+) -> np.ndarray:
+    r"""Load-rotation curve F1*(alpha) of the Turco chain, F2* = 0.
+
+    Seed Eq. (57); ``branch=-1`` is Eq. (58), the branch through the unloaded
+    state (F1* = 0 at alpha = alpha0):
+
+    .. math::
+
+        F_1^* = 2\,\frac{\sin(2\alpha - \alpha_0) \pm
+        \sqrt{\sin^2(2\alpha - \alpha_0)
+        + \gamma\sin(2\alpha)\sin(2\alpha_0 - 2\alpha)}}{\sin(2\alpha)}.
+
+    These are the roots of the quadratic Eq. (56),
+    :math:`-\tfrac14\sin(2\alpha)F_1^{*2} + F_1^*\sin(2\alpha-\alpha_0)
+    + \gamma\sin(2\alpha_0 - 2\alpha) = 0`.  (The printed Eq. (56) reads
+    ``sin(2 alpha0 - alpha)`` in its last term; Eq. (55) with F2* = 0 and
+    Eq. (57) both give ``sin(2 alpha0 - 2 alpha)``.)
+
+    Parameters
+    ----------
+    alpha, gamma, alpha0 : array_like
+        Branch orientation (rad), stiffness ratio, initial orientation (rad);
+        broadcast together.
+    branch : {-1, +1}
+        Sign before the square root.
+
+    Returns
+    -------
+    ndarray
+        F1* (units of 2R k_n); NaN where the discriminant is negative.
+    """
+    branch_sign = _check_branch(branch)
+    alpha, gamma, alpha0 = (np.asarray(a, dtype=float) for a in (alpha, gamma, alpha0))
+    b = np.sin(2 * alpha - alpha0)
+    delta = b**2 + gamma * np.sin(2 * alpha) * np.sin(2 * alpha0 - 2 * alpha)
+    return 2 * (b + branch_sign * _sqrt_or_nan(delta)) / np.sin(2 * alpha)
+
+
+def turco_branch_length(
+    alpha: ArrayLike, F1: ArrayLike, F2: ArrayLike, alpha0: ArrayLike
+) -> np.ndarray:
+    r"""Branch length l* of the Turco chain at equilibrium.
+
+    Seed Eq. (55), first line (from N* = -(l* - cos(alpha - alpha0)), Eq. 54):
+    :math:`l^* = \cos(\alpha - \alpha_0) - \tfrac12(F_1^*\cos\alpha + F_2^*\sin\alpha)`.
+
+    Parameters
+    ----------
+    alpha : array_like
+        Branch orientation (rad).
+    F1, F2 : array_like
+        Generalized forces (units of 2R k_n).
+    alpha0 : array_like
+        Initial orientation (rad).
+
+    Returns
+    -------
+    ndarray
+        l*, broadcast shape of the inputs.
+    """
+    alpha, F1, F2, alpha0 = (np.asarray(a, dtype=float) for a in (alpha, F1, F2, alpha0))
+    return np.cos(alpha - alpha0) - (F1 * np.cos(alpha) + F2 * np.sin(alpha)) / 2
+
+
+# --- pure-shear limit (rigid normal, k_n -> infinity) ----------------------------------------
+
+
+def pure_shear_load_rotation(
+    alpha: ArrayLike, alpha0: ArrayLike, F2hat: ArrayLike = 0.0, model: str = "rotational"
+) -> np.ndarray:
+    r"""Load-rotation curve of the pure-shear limit, forces in units of 2R k_t.
+
+    * ``"rotational"`` (McNamara et al. 2008 and the hypoelastic laws, which
+      coincide with it here, seed Eq. 60): seed Eq. (62),
+      :math:`\hat F_1 = [2(\alpha - \alpha_0) + \hat F_2\cos\alpha]/\sin\alpha`
+      (Eq. 66, first branch, for F2hat = 0);
+    * ``"translational"`` (Turco et al. 2019): seed Eq. (65),
+      :math:`\hat F_1 = [\sin(2\alpha - 2\alpha_0) + \hat F_2\cos(2\alpha - \alpha_0)]
+      /\sin(2\alpha - \alpha_0)`.
+
+    This is the first branch, before the secondary contact blocks the chain
+    (:func:`pure_shear_blocking_alpha`).
+
+    Parameters
+    ----------
+    alpha, alpha0 : array_like
+        Branch orientation and its initial value (rad).
+    F2hat : array_like, optional
+        Constant lateral force F2/(2R k_t).
+    model : {"rotational", "translational"}
+        Shear spring model.
+
+    Returns
+    -------
+    ndarray
+        F1hat = F1/(2R k_t), broadcast shape of the inputs.
+    """
+    _check_model(model)
+    alpha, alpha0, F2hat = (np.asarray(a, dtype=float) for a in (alpha, alpha0, F2hat))
+    if model == "rotational":
+        return (2 * (alpha - alpha0) + F2hat * np.cos(alpha)) / np.sin(alpha)
+    return (np.sin(2 * alpha - 2 * alpha0) + F2hat * np.cos(2 * alpha - alpha0)) / np.sin(
+        2 * alpha - alpha0
+    )
+
+
+def pure_shear_displacement(
+    alpha: ArrayLike, alpha0: ArrayLike, model: str = "rotational"
+) -> np.ndarray:
+    r"""Vertical displacement Delta_1* in the pure-shear limit.
+
+    * ``"rotational"``: l* = 1 (Eq. 60), seed Eq. (61):
+      :math:`\Delta_1^* = \cos\alpha_0 - \cos\alpha`;
+    * ``"translational"``: l* = cos(alpha - alpha0) (Eq. 63), seed Eq. (64):
+      :math:`\Delta_1^* = \cos\alpha_0 - \cos\alpha\cos(\alpha - \alpha0)`.
+
+    Parameters
+    ----------
+    alpha, alpha0 : array_like
+        Branch orientation and its initial value (rad).
+    model : {"rotational", "translational"}
+        Shear spring model.
+
+    Returns
+    -------
+    ndarray
+        Delta_1* = Delta_1/(2R), broadcast shape of the inputs.
+    """
+    _check_model(model)
+    alpha, alpha0 = (np.asarray(a, dtype=float) for a in (alpha, alpha0))
+    if model == "rotational":
+        return np.cos(alpha0) - np.cos(alpha)
+    return np.cos(alpha0) - np.cos(alpha) * np.cos(alpha - alpha0)
+
+
+def pure_shear_blocking_alpha(alpha0: ArrayLike, model: str = "rotational") -> np.ndarray:
+    r"""alpha_max at which the secondary contact blocks the pure-shear chain.
+
+    The top and bottom grains touch when the vertical half-diagonal
+    l* cos(alpha) of the diamond falls to 1/2:
+
+    * ``"rotational"``: 2 cos(alpha) = 1, alpha_max = pi/3 (seed Eq. 66-67);
+    * ``"translational"``: cos(alpha) cos(alpha - alpha0) = 1/2 (seed Eq. 68),
+      i.e. cos(2 alpha - alpha0) = 1 - cos(alpha0), solved in closed form:
+      alpha_max = (alpha0 + arccos(1 - cos alpha0)) / 2.
+
+    Parameters
+    ----------
+    alpha0 : array_like
+        Initial orientation (rad).
+    model : {"rotational", "translational"}
+        Shear spring model.
+
+    Returns
+    -------
+    ndarray
+        alpha_max (rad), shape of ``alpha0``; NaN where alpha0 is not in
+        (0, pi/3) (the grains would already touch or overlap at rest).
+    """
+    _check_model(model)
+    alpha0 = np.asarray(alpha0, dtype=float)
+    valid = (alpha0 > 0) & (alpha0 < np.pi / 3)
+    if model == "rotational":
+        return np.where(valid, np.pi / 3, np.nan)
+    safe = np.where(valid, alpha0, np.pi / 4)
+    return np.where(valid, (safe + np.arccos(1 - np.cos(safe))) / 2, np.nan)
+
+
+def pure_shear_max_displacement(alpha0: ArrayLike) -> np.ndarray:
+    r"""Delta_1*,max at which the pure-shear chain is blocked.
+
+    Seed Eq. (67)-(68): :math:`\Delta_{1,\max}^* = \cos\alpha_0 - \tfrac12`
+    for both shear spring models ((sqrt(2) - 1)/2 for alpha0 = pi/4).
+
+    Parameters
+    ----------
+    alpha0 : array_like
+        Initial orientation (rad).
+
+    Returns
+    -------
+    ndarray
+        Delta_1*,max, shape of ``alpha0``.
+    """
+    return np.cos(np.asarray(alpha0, dtype=float)) - 0.5
