@@ -12,7 +12,7 @@ from ncstab.operators.indicators import (
     skew_part,
     symmetric_part,
 )
-from ncstab.operators.second_order_work import (
+from ncstab.operators.directional_work import (
     directional_second_order_work,
     second_order_work_form,
     unstable_cone,

@@ -169,7 +169,7 @@ class Path:
             ),
         }
         if directions is not None:
-            from ncstab.operators.second_order_work import directional_second_order_work, unstable_cone
+            from ncstab.operators.directional_work import directional_second_order_work, unstable_cone
 
             if int(directions) < 4:
                 raise ValueError(f"directions must be at least 4, got {directions}")

@@ -27,7 +27,8 @@ def figure_kinds(dataset: xr.Dataset, kinds: Iterable[str] | str | None = None) 
     ----------
     dataset
         Its ``figures`` attribute (comma-separated names, or a list of names)
-        gives the kinds when ``kinds`` is None.
+        gives the kinds when ``kinds`` is None; without the attribute the
+        defaults are drawn, with an empty one none.
     kinds
         Kind names, or one comma-separated string.
 
@@ -44,7 +45,7 @@ def figure_kinds(dataset: xr.Dataset, kinds: Iterable[str] | str | None = None) 
     """
     if kinds is None:
         kinds = dataset.attrs.get("figures")
-        if kinds is None or (isinstance(kinds, str) and not kinds.strip()):
+        if kinds is None:  # no attribute: defaults; "" (a study's figures = []): none
             kinds = DEFAULT_KINDS
     if isinstance(kinds, str):
         kinds = kinds.split(",")

@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from ncstab.operators import hill_eigenvalue
-from ncstab.operators.second_order_work import (
+from ncstab.operators.directional_work import (
     directional_second_order_work,
     second_order_work_form,
     unstable_cone,

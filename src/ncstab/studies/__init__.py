@@ -1,0 +1,36 @@
+"""Study files, runs and archives (layer ``studies/``).
+
+A study file (TOML, ``docs/study-files.md``) is validated into a :class:`Study`
+(:func:`load_study`, every error of the file reported at once in a
+:class:`StudyFileError`), run into an ``xarray.Dataset`` (:func:`run_study`),
+written atomically to NetCDF (:func:`write_dataset`) and read back identical
+(:func:`open_study`, ``docs/archive.md``).
+"""
+
+from ncstab.studies.archive import normalise_dataset, open_study, write_dataset
+from ncstab.studies.expressions import ExpressionError, evaluate_expression
+from ncstab.studies.run import default_output_path, run_study
+from ncstab.studies.study import (
+    DEFAULT_FIGURES,
+    FIGURE_KINDS,
+    Study,
+    StudyFileError,
+    load_study,
+    parse_study,
+)
+
+__all__ = [
+    "DEFAULT_FIGURES",
+    "FIGURE_KINDS",
+    "ExpressionError",
+    "Study",
+    "StudyFileError",
+    "default_output_path",
+    "evaluate_expression",
+    "load_study",
+    "normalise_dataset",
+    "open_study",
+    "parse_study",
+    "run_study",
+    "write_dataset",
+]

@@ -1,0 +1,70 @@
+"""Running a validated study: ``Study -> xarray.Dataset``."""
+
+from __future__ import annotations
+
+from pathlib import Path as FilePath
+from typing import TYPE_CHECKING
+
+from ncstab.paths.api import follow
+from ncstab.studies.archive import normalise_dataset
+from ncstab.studies.study import Study
+
+if TYPE_CHECKING:  # pragma: no cover
+    import xarray as xr
+
+__all__ = ["default_output_path", "run_study"]
+
+#: Directory of archives when a study names no ``[output] file``.
+RESULTS_DIRECTORY = FilePath("results")
+
+
+def run_study(study: Study, progress: bool = False) -> xr.Dataset:
+    """Follow every case of a study and return its labelled Dataset.
+
+    The Dataset is :meth:`ncstab.paths.Path.to_dataset` (ARCHITECTURE.md,
+    "Dataset of a path study") in its on-disk representation
+    (:func:`ncstab.studies.archive.normalise_dataset`), so that writing it with
+    :func:`~ncstab.studies.write_dataset` and reading it back with
+    :func:`~ncstab.studies.open_study` gives an identical Dataset.  Attributes
+    added: ``study`` (the whole file text), ``study_name``,
+    ``study_description`` and ``figures`` (comma-separated figure kinds).
+
+    Parameters
+    ----------
+    study
+        A validated study (:func:`~ncstab.studies.load_study`).
+    progress
+        Show a progress bar (cases ended / cases).
+
+    Returns
+    -------
+    xarray.Dataset
+        Every case, failed ones included (their ``status`` and ``message`` say
+        what happened).
+    """
+    path = follow(
+        study.system,
+        list(study.laws),
+        study.programme,
+        study.parameters,
+        study.options,
+        progress=progress,
+        study_text=study.text,
+    )
+    dataset = path.to_dataset()
+    dataset.attrs.update(
+        {
+            "study": study.text,
+            "study_name": study.name,
+            "study_description": study.description,
+            "figures": ",".join(study.figures),
+        }
+    )
+    return normalise_dataset(dataset)
+
+
+def default_output_path(study: Study) -> FilePath:
+    """``[output] file`` of the study, else ``results/<study name>.nc`` (relative to the working directory)."""
+    if study.output:
+        return FilePath(study.output)
+    return RESULTS_DIRECTORY / f"{study.name}.nc"
