@@ -138,7 +138,7 @@ def _compact_labels(cases: list[Case]) -> tuple[list[str], str | None]:
 
 def _title(context: _Context, kind: str) -> str:
     if context.description:
-        return textwrap.fill(context.description, 90)
+        return textwrap.fill(context.description, 64)  # fits 6.4 in at 10 pt
     title = KIND_TITLES[kind]
     details = fixed_parameters_text(context.dataset.attrs)
     if context.rigid:
@@ -637,11 +637,7 @@ def plot_stability(dataset: xr.Dataset, figure: Figure | None = None) -> Figure:
             _set_limits(panels[-1], [case.u[:, 0] for case in context.cases], [])
         panels[-1].set_xlabel(AXIS_LABELS["D1"])
         fig.suptitle(_title(context, "stability"), fontsize=10)
-        legend.draw(
-            fig,
-            panels[0],
-            place="right" if max((len(t) for t in context.labels), default=0) <= 28 else "below",
-        )
+        legend.draw(fig, panels[0], place="below")  # the right side would collide with the title
     return fig
 
 
