@@ -14,6 +14,7 @@ from ncstab.paths.model import CaseBatch
 from ncstab.paths.options import PathOptions, SystemSpec
 from ncstab.paths.programme import LoadingProgramme, parse_programme
 from ncstab.paths.result import Path
+from ncstab.paths.variables import RESERVED_NAMES
 from ncstab.paths.rigid_model import RigidCaseBatch
 from ncstab.systems.diamond import DiamondChain
 from ncstab.systems import SYSTEMS
@@ -44,6 +45,11 @@ class ParameterGrid:
         sweep: dict[str, np.ndarray] = {}
         fixed: dict[str, float] = {}
         for name, value in parameters.items():
+            if name in RESERVED_NAMES:
+                raise ValueError(
+                    f"parameter name {name!r} is reserved (a dimension, variable or keyword of the "
+                    "Dataset); choose another name"
+                )
             if isinstance(value, (list, tuple, np.ndarray)):
                 array = np.asarray(value, dtype=float).ravel()
                 if array.size == 0:

@@ -242,6 +242,13 @@ class Path:
             units, long_name, description = VARIABLES["cycle_stage"]
             coords["cycle_stage"] = ("cycle", self.results[0].cycles["stage"].astype(np.int32), {
                 "units": units, "long_name": long_name, "description": description})
+            stage_direction = [getattr(st, "direction", 0) for st in self.programme.stages]
+            coords["cycle_direction"] = (
+                "cycle",
+                np.array([stage_direction[k] for k in self.results[0].cycles["stage"]], dtype=np.int32),
+                {"units": "1", "long_name": "direction of each cycle",
+                 "description": "1 counterclockwise, -1 clockwise in the (Delta_1*, Delta_2*) plane"},
+            )
         attrs = {
             "Conventions": "CF-1.10",
             "title": "ncstab path study",

@@ -6,7 +6,7 @@ on archive variables.  All quantities are dimensionless (seed Eq. 37).
 
 from __future__ import annotations
 
-__all__ = ["VARIABLES", "EVENT_FIELDS"]
+__all__ = ["VARIABLES", "EVENT_FIELDS", "RESERVED_NAMES"]
 
 #: name -> (units, long_name, description)
 VARIABLES: dict[str, tuple[str, str, str]] = {
@@ -58,3 +58,15 @@ EVENT_FIELDS: dict[str, tuple[str, str, str]] = {
     "T": ("1", "T* at {event}", "tangential contact force at the first {event}"),
     "K": ("1", "K at {event}", "tangent operator at the first {event}"),
 }
+
+
+#: Names a study parameter may not take: dimensions, coordinates and variables
+#: of the Dataset, and words of the study syntax.
+RESERVED_NAMES = frozenset(
+    {"law", "law_class", "step", "dof", "i", "j", "cycle", "cycle_stage", "cycle_direction", "theta",
+     "current", "pi", "e"}
+    | set(VARIABLES)
+    | {f"{event}_{suffix}" for event in (
+        "limit_point", "hill_loss", "controllability_loss", "flutter_onset", "secondary_contact", "turning_point",
+    ) for suffix in EVENT_FIELDS}
+)

@@ -26,6 +26,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.ticker import MaxNLocator
 
+from ncstab.plotting.cycles import cycle_force_drift_figure, cycle_paths_figure, cycle_work_figure
 from ncstab.plotting.cases import Case, CaseEvent, path_cases
 from ncstab.plotting.closed_form_overlays import ClosedFormOverlay, closed_form_overlay
 from ncstab.plotting.style import (
@@ -647,4 +648,7 @@ FIGURE_KINDS: dict[str, Callable[..., Figure]] = {
     "load_displacement": plot_load_displacement,
     "load_displacement_rotation": plot_load_displacement_rotation,
     "stability": plot_stability,
+    "cycle_work": cycle_work_figure,
+    "cycle_paths": cycle_paths_figure,
+    "cycle_force_drift": cycle_force_drift_figure,
 }

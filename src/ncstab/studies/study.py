@@ -83,11 +83,7 @@ RIGID_MEANINGLESS = ("gamma", "kappa")
 
 #: Names a free parameter may not take: dimensions, variables and coordinates of
 #: the Dataset (a swept parameter becomes a coordinate), and words of the file format.
-RESERVED_NAMES = frozenset(
-    {"law", "law_class", "step", "dof", "i", "j", "cycle", "theta", CURRENT, "pi", "e"}
-    | set(VARIABLES)
-    | {f"{event}_{suffix}" for event in EVENTS for suffix in EVENT_FIELDS}
-)
+from ncstab.paths.variables import RESERVED_NAMES  # noqa: E402  (one list for follow() and study files)
 
 
 class StudyFileError(ValueError):
