@@ -723,3 +723,30 @@ def test_secondary_contact_activate_adds_the_spring_and_continues():
         assert on_kink.sum() >= 1
         np.testing.assert_allclose(states["K"][~on_kink], (law_tangent + spring_tangent)[~on_kink], rtol=0, atol=1e-10)
         np.testing.assert_allclose(states["K"][on_kink, 0, 0], law_tangent[on_kink, 0, 0] + 2 * kappa, rtol=0, atol=1e-10)
+
+
+@pytest.mark.parametrize("law_name", ["mcnamara+no_tension", "turco+no_tension"])
+def test_no_tension_contact_opens_and_closes_as_located_switches(law_name):
+    """The no_tension kink (seed Eq. 59) is integrated as a piecewise-smooth
+    system: pulled apart from rest (where the contact touches, delta = 0) the
+    contact opens (N = 0, never tension), pushed back it closes again; every
+    stored state carries exactly the law's forces and no step is rejected at
+    the kink (the branch is frozen within a step, switched at the crossing)."""
+    path = follow(
+        SystemSpec(secondary_contacts="ignore"),
+        law_name,
+        [{"hold": {"F2": 0.0}, "drive": {"D1": -0.1}}, {"hold": {"F2": 0.0}, "drive": {"D1": 0.1}}],
+        {"gamma": 0.5, "alpha0": ALPHA0},
+    )
+    result, k = path.case(law_name)
+    n = result.n_steps[k]
+    assert result.status[k] == "finished"
+    assert result.counters["rejected"][k] == 0
+    normal = result.steps["N"][k, :n]
+    assert normal.min() >= 0.0  # no tension, ever
+    assert (normal == 0).sum() >= 3 and (normal > 1e-3).sum() >= 3  # open, then closed again
+    u = result.steps["u"][k, :n]
+    law = make_law(law_name, gamma=0.5, alpha0=ALPHA0)
+    # Equilibrium to 1e-10 (the Newton projection's tolerance, with margin).
+    np.testing.assert_allclose(result.steps["F"][k, :n], generalized_forces(DiamondChain(alpha0=ALPHA0), law, u),
+                               rtol=0, atol=1e-10)

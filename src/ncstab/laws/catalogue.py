@@ -22,6 +22,7 @@ from ncstab.laws.definition import (
 )
 
 __all__ = [
+    "no_tension_branches",
     "CUNDALL_STRACK",
     "WEAKLY_HYPOELASTIC",
     "MCNAMARA",
@@ -109,3 +110,19 @@ def no_tension(law: LawDefinition) -> LawDefinition:
         equations=f"{law.equations}, (59)",
         no_tension=True,
     )
+
+
+def no_tension_branches(law: LawDefinition) -> tuple[LawDefinition, LawDefinition]:
+    """The two smooth branches of a ``no_tension`` law: (closed, open).
+
+    Closed: the base law (delta acts); open: delta replaced by 0 (no normal
+    spring).  An event-driven integrator follows one branch per step and
+    switches where delta crosses 0.
+    """
+    if not law.no_tension:
+        raise ValueError(f"law {law.name!r} has no no_tension modifier")
+    closed = dataclasses.replace(law, name=f"{law.name}[closed]", no_tension=False)
+    opened = dataclasses.replace(
+        law, name=f"{law.name}[open]", no_tension=False, normal_overlap=sp.Integer(0)
+    )
+    return closed, opened

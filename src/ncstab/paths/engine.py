@@ -334,6 +334,8 @@ def follow_cases(
     break_columns = np.zeros(len(INDICATOR_EVENTS), dtype=bool)
     if secondary_contacts == "activate":
         break_columns[event_column["secondary_contact"]] = True
+    # A no_tension law's contact opening/closing is a switch of smooth branch.
+    break_columns[INDICATOR_EVENTS.index("normal_contact")] = True
 
     def fail(index: np.ndarray, reason: str, text: str | np.ndarray) -> None:
         if index.size:
@@ -410,7 +412,7 @@ def follow_cases(
                         nominal = resolve(controls[name], index, current)
                         mismatch = np.abs(nominal - current[name]) > 1e-9 * (1 + np.abs(nominal))
                         hint = np.where(
-                            stages.secondary_state[index] != 0,
+                            (stages.secondary_state[index] & 3) != 0,
                             " (secondary-contact springs already act at this state: with "
                             "secondary_contacts = 'activate' the grains overlap at rest unless "
                             "alpha0 is in [pi/6, pi/3])",

@@ -43,19 +43,24 @@ INDICATOR_EVENTS = (
     "secondary_contact",
     "secondary_contact",
     "turning_point",
+    "normal_contact",
     "cycle_end",
     "stage_target",
 )
-#: Which secondary gap a column watches (1 top-bottom, 2 left-right, 0 none).
-INDICATOR_GAP = (0, 0, 0, 0, 1, 2, 0, 0, 0)
+#: Which contact-state bit a column switches when it crosses zero: 1 top-bottom
+#: and 2 left-right secondary contacts, 4 the normal contact of a no_tension law
+#: (its overlap delta), 0 none.
+INDICATOR_GAP = (0, 0, 0, 0, 1, 2, 0, 4, 0, 0)
 #: Relative size below which an indicator built on K is taken as zero (no sign):
 #: a few hundred roundings of the entries of K.
 SIGN_NOISE = 1e-13
+#: Stand-in for an indicator exactly at zero, signed by the current branch.
+TINY = 1e-300
 #: Column of the end-of-cycle indicator (cycle stages: lambda - 2 pi (k + 1)).
 CYCLE_COLUMN = INDICATOR_EVENTS.index("cycle_end")
 #: Column of the stage-target indicator.
 TARGET_COLUMN = len(INDICATOR_EVENTS) - 1
-assert set(INDICATOR_EVENTS) - {"cycle_end", "stage_target"} == set(EVENTS)
+assert set(INDICATOR_EVENTS) - {"normal_contact", "cycle_end", "stage_target"} == set(EVENTS)
 
 
 def indicator_values(
@@ -80,6 +85,13 @@ def indicator_values(
     with np.errstate(invalid="ignore"):
         scale = np.nanmax(np.abs(np.concatenate([stiffness, control], axis=-1)), axis=(-2, -1))
     scale = np.where(np.isfinite(scale) & (scale > 0), scale, 1.0)
+    # A contact indicator exactly at zero takes the sign of the branch the case
+    # is on, so leaving the kink into the other side is a detected crossing
+    # (a no_tension contact touching at rest is closed: overlap "+0").
+    state = stage.secondary_state
+    overlap = evaluation.normal_overlap
+    overlap = np.where(overlap == 0, np.where(state & 4, -TINY, TINY), overlap)
+    gaps = np.where(gaps == 0, np.where(np.stack([state & 1, state & 2], -1) > 0, -TINY, TINY), gaps)
     target = (lam - stage.lam_end) * stage.target_sign
     with np.errstate(invalid="ignore"):
         cycle_end = np.where(stage.is_cycle, lam - 2 * np.pi * (stage.cycles_done + 1), np.nan)
@@ -97,6 +109,7 @@ def indicator_values(
             gaps[:, 0],
             gaps[:, 1],
             dlam,
+            overlap,
             cycle_end,
             target,
         ]

@@ -11,12 +11,16 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from ncstab.laws.catalogue import no_tension_branches
 from ncstab.laws.registry import Law
 from ncstab.operators.tangent import tangent_operator_at_contact_state
 from ncstab.symbolic.compile import CompiledLaw, compile_law
 from ncstab.systems.protocol import DiscreteSystem
 
-__all__ = ["CaseBatch", "Evaluation"]
+__all__ = ["CaseBatch", "Evaluation", "NORMAL_OPEN"]
+
+#: Bit of the contact state: the normal contact of a no_tension law is open.
+NORMAL_OPEN = 4
 
 
 @dataclass(frozen=True)
@@ -44,6 +48,10 @@ class Evaluation:
         Jacobians of u and F with respect to the state coordinates, ``(B, n, n)``.
     gaps
         Secondary-contact gaps (units of 2R), ``(B, 2)``.
+    normal_overlap
+        Normal overlap delta of a ``no_tension`` law's contact, ``(B,)``
+        (NaN for other laws): its sign change is where the contact opens or
+        closes.
     """
 
     q: np.ndarray
@@ -55,6 +63,7 @@ class Evaluation:
     du_dv: np.ndarray
     dF_dv: np.ndarray
     gaps: np.ndarray
+    normal_overlap: np.ndarray
 
     def take(self, index: np.ndarray) -> "Evaluation":
         return Evaluation(*(getattr(self, f.name)[index] for f in fields(self)))
@@ -121,19 +130,37 @@ class CaseBatch:
         kappa = self.kappa[index] if np.ndim(self.kappa) else self.kappa
         return CaseBatch(system, law, kappa, self.activate_secondary)
 
-    def contact_state(self, u: np.ndarray, internal: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def contact_state(
+        self, u: np.ndarray, internal: np.ndarray, law: Law | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(q, N, T) at displacements ``u`` (B, n) and internal variables (B, n_internal)."""
+        law = self.law if law is None else law
         q = self.system.contact_variables(u)
-        compiled = self.compiled
+        compiled = compile_law(law.definition)
         contacts = range(self.system.n_contacts)
-        normal = np.stack([compiled.normal_force(self.law, q[:, c, 0], q[:, c, 1]) for c in contacts], -1)
-        if self.law.has_total_form:
+        normal = np.stack([compiled.normal_force(law, q[:, c, 0], q[:, c, 1]) for c in contacts], -1)
+        if law.has_total_form:
             tangential = np.stack(
-                [compiled.tangential_force(self.law, q[:, c, 0], q[:, c, 1]) for c in contacts], -1
+                [compiled.tangential_force(law, q[:, c, 0], q[:, c, 1]) for c in contacts], -1
             )
         else:
             tangential = internal
         return q, normal, tangential
+
+    def _branch_laws(self) -> tuple[Law, Law]:
+        """(closed, open) smooth branches of a no_tension law, same parameters."""
+        closed, opened = no_tension_branches(self.law.definition)
+        return Law(closed, self.law.parameters), Law(opened, self.law.parameters)
+
+    def _normal_open(self, u: np.ndarray, secondary_state: np.ndarray | None) -> np.ndarray:
+        if secondary_state is None:
+            return self.initial_secondary_state(u) & NORMAL_OPEN > 0
+        return (secondary_state & NORMAL_OPEN) > 0
+
+    def _overlap(self, q: np.ndarray) -> np.ndarray:
+        if not self.law.definition.no_tension:
+            return np.full(q.shape[0], np.nan)
+        return self.compiled.normal_overlap(self.law, q[:, 0, 0], q[:, 0, 1])
 
     @property
     def force_unit(self) -> str:
@@ -144,13 +171,19 @@ class CaseBatch:
         return np.zeros((self.size, self.n_dof))
 
     def initial_secondary_state(self, u: np.ndarray) -> np.ndarray:
-        """Bits of the secondary springs already compressed at ``u`` (bit 0 top-bottom, bit 1 left-right)."""
-        if not self.activate_secondary:
-            return np.zeros(u.shape[0], dtype=int)
-        overlap = 1.0 - 2.0 * np.stack(
-            [np.cos(self.system.parameters["alpha0"]) - u[:, 0], np.sin(self.system.parameters["alpha0"]) - u[:, 1]], -1
-        ) * np.ones((u.shape[0], 1))
-        return (overlap[:, 0] > 0).astype(int) + 2 * (overlap[:, 1] > 0).astype(int)
+        """Contact state bits at ``u``: bit 0 top-bottom and bit 1 left-right springs
+        compressed (``activate`` mode), bit 2 (:data:`NORMAL_OPEN`) the normal
+        contact of a ``no_tension`` law open (delta < 0)."""
+        state = np.zeros(u.shape[0], dtype=int)
+        if self.activate_secondary:
+            overlap = 1.0 - 2.0 * np.stack(
+                [np.cos(self.system.parameters["alpha0"]) - u[:, 0], np.sin(self.system.parameters["alpha0"]) - u[:, 1]],
+                -1,
+            ) * np.ones((u.shape[0], 1))
+            state += (overlap[:, 0] > 0).astype(int) + 2 * (overlap[:, 1] > 0).astype(int)
+        if self.law.definition.no_tension:
+            state += NORMAL_OPEN * (self._overlap(self.system.contact_variables(u)) < 0)
+        return state
 
     def evaluate(self, u: np.ndarray, internal: np.ndarray, secondary_state: np.ndarray | None = None) -> Evaluation:
         """Forces (seed Eq. 4) and tangent operator (Eq. 30-34) at a batch of states.
@@ -160,9 +193,22 @@ class CaseBatch:
         within a step the set is frozen, so the field is smooth; the engine
         switches it where a gap crossing is located.
         """
-        q, normal, tangential = self.contact_state(u, internal)
+        if self.law.definition.no_tension:
+            # Event-driven: each case follows its frozen branch (closed / open) within a step.
+            is_open = self._normal_open(u, secondary_state)
+            branches = []
+            for law in self._branch_laws():
+                q, normal, tangential = self.contact_state(u, internal, law)
+                stiffness = tangent_operator_at_contact_state(self.system, law, q, normal, tangential)
+                branches.append((normal, tangential, stiffness))
+            normal, tangential, stiffness = (
+                np.where(is_open.reshape((-1,) + (1,) * (closed.ndim - 1)), opened, closed)
+                for closed, opened in zip(*branches)
+            )
+        else:
+            q, normal, tangential = self.contact_state(u, internal)
+            stiffness = tangent_operator_at_contact_state(self.system, self.law, q, normal, tangential)
         forces = self.system.generalized_forces(q, normal, tangential)
-        stiffness = tangent_operator_at_contact_state(self.system, self.law, q, normal, tangential)
         if self.activate_secondary:
             state = self.initial_secondary_state(u) if secondary_state is None else secondary_state
             active = np.stack([(state & 1) > 0, (state & 2) > 0], -1)
@@ -170,11 +216,14 @@ class CaseBatch:
             stiffness = stiffness + self.system.secondary_stiffness(u, self.kappa, active)
         identity = np.broadcast_to(np.eye(self.n_dof), stiffness.shape)
         gaps = self.system.secondary_gaps(q)
-        return Evaluation(q, normal, tangential, u, forces, stiffness, identity, stiffness, gaps)
+        return Evaluation(
+            q, normal, tangential, u, forces, stiffness, identity, stiffness, gaps, self._overlap(q)
+        )
 
     def close_contact(self, y: np.ndarray, secondary_state: np.ndarray, gap: np.ndarray, layout: object) -> None:
-        """A secondary gap crossed zero: switch that spring on (closing) or off (opening), in place."""
-        secondary_state ^= np.where(gap == 1, 1, np.where(gap == 2, 2, 0))
+        """A gap crossed zero: toggle its bit (1, 2: secondary springs; 4: a
+        no_tension law's normal contact), in place."""
+        secondary_state ^= gap.astype(int)
 
     def internal_rate(
         self, evaluation: Evaluation, du: np.ndarray, secondary_state: np.ndarray | None = None
@@ -185,10 +234,17 @@ class CaseBatch:
         q = evaluation.q
         jacobian = self.system.contact_jacobian(q)  # (B, n_c, 2, n)
         dq = (jacobian @ du[:, None, :, None])[..., 0]
+        if self.law.definition.no_tension:
+            is_open = self._normal_open(evaluation.displacements, secondary_state)
+            closed, opened = (self._internal_rate(law, evaluation, dq) for law in self._branch_laws())
+            return np.where(is_open[:, None], opened, closed)
+        return self._internal_rate(self.law, evaluation, dq)
+
+    def _internal_rate(self, law: Law, evaluation: Evaluation, dq: np.ndarray) -> np.ndarray:
+        q = evaluation.q
+        compiled = compile_law(law.definition)
         rates = []
         for c in range(self.system.n_contacts):
-            rate = self.compiled.rate_matrix(
-                self.law, q[:, c, 0], q[:, c, 1], evaluation.normal[:, c], evaluation.tangential[:, c]
-            )
+            rate = compiled.rate_matrix(law, q[:, c, 0], q[:, c, 1], evaluation.normal[:, c], evaluation.tangential[:, c])
             rates.append(rate[:, 1, 0] * dq[:, c, 0] + rate[:, 1, 1] * dq[:, c, 1])
         return np.stack(rates, axis=-1)

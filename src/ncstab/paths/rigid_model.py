@@ -132,7 +132,8 @@ class RigidCaseBatch:
         q = np.stack([length, alpha], -1)[:, None, :]
         stiffness = np.full((size, 2, 2), np.nan)
         return Evaluation(
-            q, reaction[:, None], tangential[:, None], u, forces, stiffness, du_dv, df_dv, gaps
+            q, reaction[:, None], tangential[:, None], u, forces, stiffness, du_dv, df_dv, gaps,
+            np.full(size, np.nan),
         )
 
     def internal_rate(self, evaluation: Evaluation, dv: np.ndarray, blocked: np.ndarray | None = None) -> np.ndarray:

@@ -63,6 +63,8 @@ class CompiledLaw:
         [dN, dT] = C [dl, dalpha].
     energy_function
         ``(l, alpha, *params) -> W``, or ``None``.
+    overlap_function
+        ``(l, alpha, *params) -> delta``, the normal overlap.
     """
 
     definition: LawDefinition
@@ -70,6 +72,7 @@ class CompiledLaw:
     tangential_function: ArrayFunction | None
     rate_matrix_function: ArrayFunction
     energy_function: ArrayFunction | None
+    overlap_function: ArrayFunction | None = None
 
     # Convenience wrappers taking a validated Law for its parameter values.
     def normal_force(self, law: Law, l: np.ndarray, alpha: np.ndarray) -> np.ndarray:
@@ -91,6 +94,11 @@ class CompiledLaw:
         """C with [dN, dT] = C [dl, dalpha], shape ``(..., 2, 2)``."""
         flat = self.rate_matrix_function(l, alpha, normal, tangential, *law.parameter_values())
         return flat.reshape(flat.shape[:-1] + (2, 2))
+
+    def normal_overlap(self, law: Law, l: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+        """The normal overlap delta(l, alpha) (before any Macaulay bracket)."""
+        assert self.overlap_function is not None
+        return self.overlap_function(l, alpha, *law.parameter_values())[..., 0]
 
     def energy(self, law: Law, l: np.ndarray, alpha: np.ndarray) -> np.ndarray:
         """Stored energy per contact W(l, alpha) in units of k_n (2R)^2."""
@@ -119,4 +127,5 @@ def compile_law(definition: LawDefinition) -> CompiledLaw:
         and derivation.hyperelasticity.holds
         else None
     )
-    return CompiledLaw(definition, normal, tangential, rate, energy)
+    overlap = lambdify_broadcast(contact + params, [definition.normal_overlap])
+    return CompiledLaw(definition, normal, tangential, rate, energy, overlap)
