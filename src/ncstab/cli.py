@@ -119,16 +119,25 @@ def command_run(args: argparse.Namespace) -> int:
     return 1 if any_failed else 0
 
 
+def _open_archive(command: str, archive: str):
+    """The archive's Dataset, or None (after saying why) if there is no such file."""
+    from ncstab.studies import open_study
+
+    path = Path(archive)
+    if not path.exists():
+        print(f"ncstab {command}: no such archive: {path}", file=sys.stderr)
+        return None
+    return open_study(path)
+
+
 def command_plot(args: argparse.Namespace) -> int:
     """Redraw the figures of an archive from the archive alone."""
     from ncstab.plotting import draw_figures
-    from ncstab.studies import open_study
 
     path = Path(args.archive)
-    if not path.exists():
-        print(f"ncstab plot: no such archive: {path}", file=sys.stderr)
+    dataset = _open_archive("plot", args.archive)
+    if dataset is None:
         return 2
-    dataset = open_study(path)
     kinds = args.kinds.split(",") if args.kinds else None
     directory = Path(args.directory) if args.directory else path.parent
     for figure in draw_figures(dataset, directory, kinds=kinds, stem=path.stem):
@@ -138,13 +147,10 @@ def command_plot(args: argparse.Namespace) -> int:
 
 def command_info(args: argparse.Namespace) -> int:
     """Summarise an archive: study, sweep, statuses, events."""
-    from ncstab.studies import open_study
-
     path = Path(args.archive)
-    if not path.exists():
-        print(f"ncstab info: no such archive: {path}", file=sys.stderr)
+    ds = _open_archive("info", args.archive)
+    if ds is None:
         return 2
-    ds = open_study(path)
     attrs = ds.attrs
     print(f"{path}")
     print(f"  study: {attrs.get('study_name', '?')} -- {attrs.get('study_description', '')}".rstrip(" -"))
