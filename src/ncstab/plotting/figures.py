@@ -210,7 +210,7 @@ class _Legend:
         if place == "inside":
             legend = axes.legend(handles, labels, loc="best", title=self.title)
         elif place == "right":
-            legend = figure.legend(handles, labels, loc="outside right upper", title=self.title)
+            legend = figure.legend(handles, labels, loc="outside right center", title=self.title)
         elif place == "corner":
             legend = figure.legend(
                 handles, labels, loc="upper left", bbox_to_anchor=(0.01, 0.9), title=self.title
@@ -342,7 +342,8 @@ def _planar(dataset: xr.Dataset, figure: Figure | None, kind: str) -> Figure:
             top = axes.secondary_xaxis("top", functions=(np.degrees, np.radians))
             top.set_xlabel(AXIS_LABELS["alpha_deg"], fontsize=9)
         axes.axhline(0.0, color="0.5", linewidth=0.6, zorder=1)
-        axes.set_title(_title(context, kind))
+        # A figure title: above an outside legend too (constrained layout).
+        fig.suptitle(_title(context, kind), fontsize=10)
         if not context.cases:
             axes.text(
                 0.5,
