@@ -27,6 +27,8 @@ from matplotlib.lines import Line2D
 from matplotlib.ticker import MaxNLocator
 
 from ncstab.plotting.cycles import cycle_force_drift_figure, cycle_paths_figure, cycle_work_figure
+from ncstab.plotting.maps import second_order_work_map_figure, second_order_work_polar_figure, state_map_figure
+from ncstab.plotting.diagrams import stability_diagram_figure
 from ncstab.plotting.cases import Case, CaseEvent, path_cases
 from ncstab.plotting.closed_form_overlays import ClosedFormOverlay, closed_form_overlay
 from ncstab.plotting.style import (
@@ -652,4 +654,8 @@ FIGURE_KINDS: dict[str, Callable[..., Figure]] = {
     "cycle_work": cycle_work_figure,
     "cycle_paths": cycle_paths_figure,
     "cycle_force_drift": cycle_force_drift_figure,
+    "stability_diagram": stability_diagram_figure,
+    "second_order_work_map": second_order_work_map_figure,
+    "second_order_work_polar": second_order_work_polar_figure,
+    "state_map": state_map_figure,
 }

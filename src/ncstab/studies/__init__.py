@@ -4,10 +4,12 @@ A study file (TOML, ``docs/study-files.md``) is validated into a :class:`Study`
 (:func:`load_study`, every error of the file reported at once in a
 :class:`StudyFileError`), run into an ``xarray.Dataset`` (:func:`run_study`),
 written atomically to NetCDF (:func:`write_dataset`) and read back identical
-(:func:`open_study`, ``docs/archive.md``).
+(:func:`open_study`, ``docs/archive.md``).  Large sweeps run in chunks, resumable
+and optionally on a dask cluster (:func:`run_study_chunked`, ``docs/scale.md``).
 """
 
 from ncstab.studies.archive import normalise_dataset, open_study, write_dataset
+from ncstab.studies.chunked import ResumeError, run_study_chunked
 from ncstab.studies.expressions import ExpressionError, evaluate_expression
 from ncstab.studies.run import default_output_path, run_study
 from ncstab.studies.study import (
@@ -23,6 +25,7 @@ __all__ = [
     "DEFAULT_FIGURES",
     "FIGURE_KINDS",
     "ExpressionError",
+    "ResumeError",
     "Study",
     "StudyFileError",
     "default_output_path",
@@ -32,5 +35,6 @@ __all__ = [
     "open_study",
     "parse_study",
     "run_study",
+    "run_study_chunked",
     "write_dataset",
 ]

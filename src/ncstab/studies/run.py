@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 
 from ncstab.paths.api import follow
 from ncstab.studies.archive import normalise_dataset
+from ncstab.studies.maps import add_state_maps
 from ncstab.studies.study import Study
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -51,7 +52,10 @@ def run_study(study: Study, progress: bool = False) -> xr.Dataset:
         progress=progress,
         study_text=study.text,
     )
-    dataset = path.to_dataset()
+    study_map = study.map
+    dataset = path.to_dataset(directions=study_map.directions if study_map else None)
+    if study_map is not None and study_map.grid is not None:
+        dataset = add_state_maps(dataset, path, study_map.grid)
     dataset.attrs.update(
         {
             "study": study.text,

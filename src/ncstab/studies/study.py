@@ -47,7 +47,7 @@ __all__ = [
 ]
 
 #: Sections of a study file, in the order they are documented.
-SECTIONS = ("study", "system", "laws", "parameters", "loading", "options", "output")
+SECTIONS = ("study", "system", "laws", "parameters", "loading", "options", "map", "output")
 #: Figure kinds a study may ask for in ``[output] figures``: those
 #: ``ncstab.plotting.FIGURE_KINDS`` draws (the cycle kinds for programmes with cycle stages).
 FIGURE_KINDS = (
@@ -58,6 +58,10 @@ FIGURE_KINDS = (
     "cycle_work",
     "cycle_paths",
     "cycle_force_drift",
+    "stability_diagram",
+    "second_order_work_map",
+    "second_order_work_polar",
+    "state_map",
 )
 #: Figures drawn when ``[output] figures`` is not given.
 DEFAULT_FIGURES = ("load_displacement", "load_rotation")
@@ -67,6 +71,8 @@ _SYSTEM_SETTINGS = ("name", "secondary_contacts", "normal")
 _STAGE_KEYS = ("hold", "drive", "stop_at", "cycle")
 _CYCLE_KEYS = ("center", "turns", "direction")
 _OUTPUT_KEYS = ("figures", "file")
+_MAP_KEYS = ("directions", "grid")
+_GRID_KEYS = ("D1", "D2")
 _STUDY_KEYS = ("name", "description")
 
 #: Secondary-contact stiffness ratio kappa (understood by the path engine for every system).
@@ -155,6 +161,7 @@ class Study:
     options: PathOptions
     figures: tuple[str, ...] = DEFAULT_FIGURES
     output: str | None = None
+    map: "StudyMap | None" = None
 
     @property
     def sweep(self) -> dict[str, list[float]]:
@@ -623,6 +630,69 @@ def _options_section(data: Mapping[str, Any], errors: _Errors) -> PathOptions:
         return PathOptions()
 
 
+@dataclass(frozen=True)
+class StudyMap:
+    """The ``[map]`` section: second-order work maps to add to the archive.
+
+    Attributes
+    ----------
+    directions
+        Number of loading directions theta in [0, pi) for ``d2W_dir`` along the
+        paths (and the unstable cone per step), or ``None``.
+    grid
+        ``((D1 min, D1 max, n1), (D2 min, D2 max, n2))``: a state map of the
+        indicators over the displacement plane (laws with a total form), or
+        ``None``.
+    """
+
+    directions: int | None = None
+    grid: tuple[tuple[float, float, int], tuple[float, float, int]] | None = None
+
+
+def _map_section(data: Mapping[str, Any], errors: _Errors) -> StudyMap | None:
+    table = _table(data, "map", errors)
+    if table is None:
+        return None
+    _check_keys(table, _MAP_KEYS, "map", errors, "[map]")
+    directions = None
+    if "directions" in table:
+        raw = table["directions"]
+        if isinstance(raw, bool) or not isinstance(raw, int) or not 4 <= raw <= 100_000:
+            errors.add("map.directions", f"expected a whole number of directions from 4 to 100000, got {raw!r}")
+        else:
+            directions = raw
+    grid = None
+    if "grid" in table:
+        raw = table["grid"]
+        if not isinstance(raw, dict):
+            errors.add("map.grid", "expected a table { D1 = [min, max, n], D2 = [min, max, n] }")
+        else:
+            _check_keys(raw, _GRID_KEYS, "map.grid", errors, "[map] grid")
+            axes = []
+            for key in _GRID_KEYS:
+                field = f"map.grid.{key}"
+                spec = raw.get(key)
+                if not isinstance(spec, list) or len(spec) != 3:
+                    errors.add(field, f"expected [min, max, n] for {key}, got {spec!r}")
+                    continue
+                low, high = _number(spec[0], field, errors), _number(spec[1], field, errors)
+                count = spec[2]
+                if isinstance(count, bool) or not isinstance(count, int) or not 2 <= count <= 2000:
+                    errors.add(field, f"the number of grid points must be a whole number from 2 to 2000, got {count!r}")
+                    continue
+                if low is None or high is None:
+                    continue
+                if not low < high:
+                    errors.add(field, f"expected min < max, got [{low:g}, {high:g}]")
+                    continue
+                axes.append((low, high, count))
+            if len(axes) == 2:
+                grid = (axes[0], axes[1])
+    if directions is None and grid is None and not errors.items:
+        errors.add("map", "an empty [map] section: give directions, a grid, or both")
+    return StudyMap(directions, grid)
+
+
 def _output_section(data: Mapping[str, Any], errors: _Errors) -> tuple[tuple[str, ...], str | None]:
     table = _table(data, "output", errors) or {}
     _check_keys(table, _OUTPUT_KEYS, "output", errors, "[output]")
@@ -812,6 +882,7 @@ def parse_study(text: str, path: str | None = None) -> Study:
     known = [k for k in specs if not (system.normal == "rigid" and k in RIGID_MEANINGLESS)]
     _check_references(errors, references, fields, free, known)
     options = _options_section(data, errors)
+    study_map = _map_section(data, errors)
     figures, output = _output_section(data, errors)
 
     if errors.items or programme is None:
@@ -830,6 +901,7 @@ def parse_study(text: str, path: str | None = None) -> Study:
         options=options,
         figures=figures,
         output=output,
+        map=study_map,
     )
 
 
