@@ -41,21 +41,32 @@ def second_order_work_form(stiffness: np.ndarray) -> tuple[np.ndarray, np.ndarra
 def directional_second_order_work(stiffness: np.ndarray, theta: np.ndarray) -> np.ndarray:
     """d2W(theta) = e(theta) . K e(theta) for unit directions e = (cos, sin).
 
+    Evaluated as K11 cos^2 + (K12 + K21) cos sin + K22 sin^2: a product of the
+    (..., 3) coefficients with the (3, M) direction basis (one matrix product,
+    no trigonometry per (state, direction) pair).
+
     Parameters
     ----------
     stiffness
         ``(..., 2, 2)``.
     theta
-        Directions (rad), any shape ``(M,)``: broadcast as a trailing axis.
+        Directions (rad), shape ``(M,)``: broadcast as a trailing axis.
 
     Returns
     -------
     numpy.ndarray
         ``(..., M)``, normalised by |du|^2 = 1.
     """
-    mean, radius, phi = second_order_work_form(stiffness)
+    stiffness = np.asarray(stiffness, dtype=float)
+    if stiffness.shape[-2:] != (2, 2):
+        raise ValueError(f"directional second-order work needs 2x2 operators, got shape {stiffness.shape}")
     theta = np.asarray(theta, dtype=float)
-    return mean[..., None] + radius[..., None] * np.cos(2 * theta - 2 * phi[..., None])
+    c, s = np.cos(theta), np.sin(theta)
+    basis = np.stack([c * c, c * s, s * s])  # (3, M)
+    coefficients = np.stack(
+        [stiffness[..., 0, 0], stiffness[..., 0, 1] + stiffness[..., 1, 0], stiffness[..., 1, 1]], axis=-1
+    )
+    return coefficients @ basis
 
 
 def unstable_cone(stiffness: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
