@@ -492,3 +492,9 @@ def test_tangent_operator_broadcasts_over_parameter_sweeps(rng, name):
             np.testing.assert_allclose(
                 stiffness[i, j], single, rtol=0, atol=EXACT_TOL * _scale(single)
             )
+
+
+def test_law_and_system_must_share_alpha0():
+    """alpha0 is one quantity (seed Eq. 1 and 18): two values are refused, naming it."""
+    with pytest.raises(ValueError, match="alpha0"):
+        tangent_operator(DiamondChain(alpha0=0.7), make_law("mcnamara", gamma=1.0, alpha0=0.8), np.zeros(2))

@@ -21,6 +21,7 @@ from ncstab.symbolic.compile import compile_law
 from ncstab.systems.protocol import DiscreteSystem, conjugate_forces
 
 __all__ = [
+    "check_shared_parameters",
     "conjugate_tangent",
     "contact_forces",
     "generalized_forces",
@@ -28,6 +29,28 @@ __all__ = [
     "tangent_operator_at_contact_state",
     "tangent_operator_at_forces",
 ]
+
+
+def check_shared_parameters(system: DiscreteSystem, law: Law) -> None:
+    """Raise if a parameter both the system and the law carry (alpha0) differs.
+
+    The law's reference orientation and the system's initial orientation are
+    the same quantity in the seed; two different values would silently give a
+    prestressed reference state.
+    """
+    for name in set(system.parameters) & set(law.parameters):
+        a, b = np.asarray(system.parameters[name]), np.asarray(law.parameters[name])
+        if a.shape == b.shape and np.array_equal(a, b):
+            continue
+        try:
+            same = np.allclose(a, b, rtol=0, atol=1e-15)
+        except ValueError:
+            same = False
+        if not same:
+            raise ValueError(
+                f"parameter {name!r} differs between the system ({a!r}) and the law ({b!r}); "
+                "give both the same value (they are the same quantity, seed Eq. 1 and 18)"
+            )
 
 
 def conjugate_tangent(
@@ -58,6 +81,7 @@ def contact_forces(system: DiscreteSystem, law: Law, u: np.ndarray) -> tuple[np.
         For a law without a total tangential force (T is then an internal
         variable that only a path can carry).
     """
+    check_shared_parameters(system, law)
     compiled = compile_law(law.definition)
     q = system.contact_variables(u)
     normal = np.stack(
@@ -132,6 +156,7 @@ def tangent_operator(
         Current T per contact, ``(..., n_contacts)``; required for a law without
         a total tangential form (Cundall--Strack), ignored otherwise.
     """
+    check_shared_parameters(system, law)
     u = np.asarray(u, dtype=float)
     q = system.contact_variables(u)
     compiled = compile_law(law.definition)
@@ -157,6 +182,7 @@ def tangent_operator_at_forces(
     the diamond, seed Eq. 4), so this is the operator of seed Eq. (34)/(38)
     written with the current (F1, F2), whatever the law's history.
     """
+    check_shared_parameters(system, law)
     u = np.asarray(u, dtype=float)
     q = system.contact_variables(u)
     normal, tangential = system.contact_forces(q, np.asarray(forces, dtype=float))
