@@ -750,3 +750,21 @@ def test_no_tension_contact_opens_and_closes_as_located_switches(law_name):
     # Equilibrium to 1e-10 (the Newton projection's tolerance, with margin).
     np.testing.assert_allclose(result.steps["F"][k, :n], generalized_forces(DiamondChain(alpha0=ALPHA0), law, u),
                                rtol=0, atol=1e-10)
+
+
+def test_stop_at_limit_point_still_records_the_coincident_hill_loss():
+    """For a hyperelastic law (K symmetric, seed Eq. 41) Hill's condition is lost
+    at the limit point itself; stopping there must still record hill_loss (its
+    root may land within event_tol past the stop point)."""
+    path = follow(
+        SystemSpec(secondary_contacts="ignore"),
+        "mcnamara",
+        [{"hold": {"F1": 0.0}, "drive": {"F2": 0.75}},
+         {"hold": {"F2": "current"}, "drive": {"D1": 0.6}, "stop_at": ["limit_point"]}],
+        {"gamma": 0.5, "alpha0": ALPHA0},
+    )
+    result, k = path.case("mcnamara")
+    assert result.status[k] == "stopped:limit_point"
+    assert result.events["hill_loss"]["found"][k]
+    # Both located to event_tol = 1e-10 in arclength: they agree to 2 brackets.
+    assert abs(result.events["hill_loss"]["s"][k] - result.events["limit_point"]["s"][k]) < 2e-10

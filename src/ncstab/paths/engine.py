@@ -596,7 +596,9 @@ def follow_cases(
             sig = sigma[:, columns]
             best = np.argmin(sig, axis=1)
             best_sigma = sig[np.arange(cases.size), best]
-            hit = np.isfinite(best_sigma) & (best_sigma <= reach) & ~events[name]["found"][cases]
+            # Events that coincide with the cut point within the location
+            # tolerance (a hyperelastic limit point is also a Hill loss) count.
+            hit = np.isfinite(best_sigma) & (best_sigma <= reach + options.event_tol) & ~events[name]["found"][cases]
             rows = np.flatnonzero(hit)
             if rows.size == 0:
                 continue
