@@ -84,11 +84,24 @@ def _event_summary(dataset) -> list[str]:
 def command_run(args: argparse.Namespace) -> int:
     """Validate every study first (exit 2 if any is bad), then run, write, draw."""
     from ncstab.plotting import draw_figures
-    from ncstab.studies import StudyFileError, default_output_path, load_study, run_study, write_dataset
+    from ncstab.studies import (
+        ResumeError,
+        StudyFileError,
+        default_output_path,
+        load_study,
+        run_study,
+        run_study_chunked,
+        write_dataset,
+    )
 
     if args.output is not None and len(args.studies) != 1:
         print("ncstab run: -o/--output needs exactly one study file", file=sys.stderr)
         return 2
+    for flag, value in (("--chunk-cases", args.chunk_cases), ("--workers", args.workers)):
+        if value is not None and value < 1:
+            print(f"ncstab run: {flag} must be at least 1, got {value}", file=sys.stderr)
+            return 2
+    chunked = args.chunk_cases is not None or args.resume or args.workers is not None or args.scheduler is not None
     studies = []
     bad = False
     for path in args.studies:
@@ -107,8 +120,23 @@ def command_run(args: argparse.Namespace) -> int:
     any_failed = False
     for study in studies:
         output = Path(args.output) if args.output else default_output_path(study)
-        dataset = run_study(study, progress=progress)
-        write_dataset(dataset, output)
+        if chunked:
+            try:
+                dataset = run_study_chunked(
+                    study,
+                    output,
+                    chunk_cases=args.chunk_cases,
+                    resume=args.resume,
+                    workers=args.workers,
+                    scheduler=args.scheduler,
+                    progress=progress,
+                )
+            except (ImportError, ResumeError) as error:
+                print(f"ncstab run: {study.name}: {error}", file=sys.stderr)
+                return 2
+        else:
+            dataset = run_study(study, progress=progress)
+            write_dataset(dataset, output)
         figures = draw_figures(dataset, output.parent, stem=output.stem)
         print(f"{study.name}: wrote {output}")
         for figure in figures:
@@ -198,6 +226,19 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("-o", "--output", metavar="OUT.nc", help="archive path (one study only); "
                      "default results/<study name>.nc")
     run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    run.add_argument("--chunk-cases", type=int, metavar="N",
+                     help="run in chunks of at most N cases, each kept in OUT.nc.parts/ as it "
+                          "finishes (default with --resume/--workers/--scheduler: 4096)")
+    run.add_argument("--resume", action="store_true",
+                     help="keep the chunks an interrupted run left in OUT.nc.parts/ and compute "
+                          "only the missing ones")
+    where = run.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, metavar="N",
+                       help="run the chunks on a local dask cluster of N worker processes "
+                            "(needs ncstab[distributed])")
+    where.add_argument("--scheduler", metavar="ADDRESS",
+                       help="run the chunks on an existing dask.distributed cluster "
+                            "(e.g. tcp://host:8786; needs ncstab[distributed])")
     run.set_defaults(handler=command_run)
 
     plot = sub.add_parser("plot", help="redraw the figures of an archive")

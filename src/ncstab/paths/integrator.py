@@ -12,7 +12,7 @@ from typing import Callable
 import numpy as np
 from scipy.integrate._ivp import dop853_coefficients as dop
 
-__all__ = ["dop853_step", "dense_output", "evaluate_dense", "error_norm", "ERROR_EXPONENT"]
+__all__ = ["combine_stages", "dop853_step", "dense_output", "evaluate_dense", "error_norm", "ERROR_EXPONENT"]
 
 _A = dop.A[: dop.N_STAGES, : dop.N_STAGES]
 _B = dop.B
@@ -20,6 +20,36 @@ _E3 = dop.E3
 _E5 = dop.E5
 #: Step-size controller exponent -1/(order + 1) with error order 7 (as scipy).
 ERROR_EXPONENT = -1.0 / 8.0
+
+
+def combine_stages(coefficients: np.ndarray, stages: np.ndarray) -> np.ndarray:
+    """``sum_k coefficients[k] * stages[k]``, term by term in stage order.
+
+    Elementwise on purpose: ``np.tensordot`` goes through BLAS, whose rounding
+    of a case depends on the length and memory alignment of the whole batch,
+    so that the same case followed in another batch (a chunk of a large sweep,
+    ``ncstab.studies.run_study_chunked``) would differ in the last bits.  Here
+    every case gets the same operations in the same order, whatever the batch.
+
+    Parameters
+    ----------
+    coefficients
+        ``(K,)`` or ``(P, K)`` weights.
+    stages
+        ``(K, B, m)`` stage derivatives (or any ``(K, ...)`` array).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(B, m)``, or ``(P, B, m)`` for 2-D coefficients.
+    """
+    if coefficients.ndim == 2:
+        return np.stack([combine_stages(row, stages) for row in coefficients])
+    total = np.multiply(coefficients[0], stages[0])
+    term = np.empty_like(total)
+    for weight, stage in zip(coefficients[1:], stages[1:]):
+        total += np.multiply(weight, stage, out=term)
+    return total
 
 
 def error_norm(stages: np.ndarray, h: np.ndarray, scale: np.ndarray) -> np.ndarray:
@@ -34,8 +64,8 @@ def error_norm(stages: np.ndarray, h: np.ndarray, scale: np.ndarray) -> np.ndarr
     scale
         ``atol + rtol * max(|y0|, |y1|)``, ``(B, m)``.
     """
-    err5 = np.tensordot(_E5, stages, axes=(0, 0)) / scale
-    err3 = np.tensordot(_E3, stages, axes=(0, 0)) / scale
+    err5 = combine_stages(_E5, stages) / scale
+    err3 = combine_stages(_E3, stages) / scale
     err5_sq = np.sum(err5**2, axis=-1)
     err3_sq = np.sum(err3**2, axis=-1)
     denominator = err5_sq + 0.01 * err3_sq
@@ -80,9 +110,9 @@ def dop853_step(
     stages[0] = rhs(y0) if f0 is None else f0
     with np.errstate(all="ignore"):
         for s in range(1, dop.N_STAGES):
-            dy = np.tensordot(_A[s, :s], stages[:s], axes=(0, 0)) * hb
+            dy = combine_stages(_A[s, :s], stages[:s]) * hb
             stages[s] = rhs(y0 + dy)
-        y1 = y0 + hb * np.tensordot(_B, stages[: dop.N_STAGES], axes=(0, 0))
+        y1 = y0 + hb * combine_stages(_B, stages[: dop.N_STAGES])
         stages[dop.N_STAGES] = rhs(y1)
         scale = atol + np.maximum(np.abs(y0), np.abs(y1)) * rtol
         err = error_norm(stages[: dop.N_STAGES + 1], h, scale)
@@ -108,7 +138,7 @@ def dense_output(
     hb = h[:, None]
     with np.errstate(all="ignore"):
         for s in range(dop.N_STAGES + 1, dop.N_STAGES_EXTENDED):
-            dy = np.einsum("k,kbm->bm", dop.A[s, :s], stages[:s]) * hb
+            dy = combine_stages(dop.A[s, :s], stages[:s]) * hb
             stages[s] = rhs(y0 + dy)
     f_old, f_new = stages[0], stages[dop.N_STAGES]
     delta = y1 - y0
@@ -116,7 +146,7 @@ def dense_output(
     coefficients[0] = delta
     coefficients[1] = hb * f_old - delta
     coefficients[2] = 2 * delta - hb * (f_new + f_old)
-    coefficients[3:] = hb[None] * np.einsum("pk,kbm->pbm", dop.D, stages)
+    coefficients[3:] = hb[None] * combine_stages(dop.D, stages)
     return coefficients
 
 

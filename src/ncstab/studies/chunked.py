@@ -19,21 +19,24 @@ whole archive (as the in-process run does).
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
 import shutil
 import tempfile
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path as FilePath
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ncstab.paths.api import ParameterGrid, _law_batch
 from ncstab.paths.engine import CaseResult, follow_cases
 from ncstab.paths.result import Path
-from ncstab.studies.archive import normalise_dataset, open_study, write_dataset
+from ncstab.studies.archive import open_study, write_dataset
+from ncstab.studies.run import study_dataset
 from ncstab.studies.study import Study
 from ncstab.systems import SYSTEMS
 
@@ -311,26 +314,31 @@ def _compute(
             done(chunk, run_chunk(study, chunk.law, chunk.start, chunk.stop))
         return
     distributed = _distributed()
-    cluster = None
-    if scheduler is None:
-        cluster = distributed.LocalCluster(
-            n_workers=int(workers),  # type: ignore[arg-type]
-            threads_per_worker=1,
-            processes=True,
-            dashboard_address=None,
-        )
-    try:
-        with distributed.Client(cluster if cluster is not None else scheduler) as client:
-            futures = {
-                client.submit(run_chunk, study, chunk.law, chunk.start, chunk.stop, pure=False): chunk
-                for chunk in chunks
-            }
-            for future in distributed.as_completed(futures):
-                done(futures.pop(future), future.result())
-                future.release()
-    finally:
-        if cluster is not None:
-            cluster.close()
+    with contextlib.ExitStack() as stack:
+        address: Any = scheduler
+        if scheduler is None:
+            # Workers' scratch space in a directory of its own, removed with the cluster.
+            scratch = stack.enter_context(tempfile.TemporaryDirectory(prefix="ncstab-dask-"))
+            import dask
+
+            stack.enter_context(dask.config.set({"temporary-directory": scratch}))
+            address = stack.enter_context(
+                distributed.LocalCluster(
+                    n_workers=int(workers),  # type: ignore[arg-type]
+                    threads_per_worker=1,
+                    processes=True,
+                    dashboard_address=":0",  # a free port: never "port 8787 is in use"
+                    local_directory=scratch,
+                )
+            )
+        client = stack.enter_context(distributed.Client(address))
+        futures = {
+            client.submit(run_chunk, study, chunk.law, chunk.start, chunk.stop, pure=False): chunk
+            for chunk in chunks
+        }
+        for future in distributed.as_completed(futures):
+            done(futures.pop(future), future.result())
+            future.release()
 
 
 def _assemble(study: Study, chunks: list[Chunk], directory: FilePath, digest: str) -> xr.Dataset:
@@ -351,22 +359,7 @@ def _assemble(study: Study, chunks: list[Chunk], directory: FilePath, digest: st
         force_names=system_class.force_names,  # type: ignore[attr-defined]
         study_text=study.text,
     )
-    # From here on, the same steps as ncstab.studies.run.run_study (keep them in step).
-    study_map = getattr(study, "map", None)
-    dataset = path.to_dataset(directions=study_map.directions if study_map else None)
-    if study_map is not None and study_map.grid is not None:
-        from ncstab.studies.maps import add_state_maps
-
-        dataset = add_state_maps(dataset, path, study_map.grid)
-    dataset.attrs.update(
-        {
-            "study": study.text,
-            "study_name": study.name,
-            "study_description": study.description,
-            "figures": ",".join(study.figures),
-        }
-    )
-    return normalise_dataset(dataset)
+    return study_dataset(study, path)
 
 
 def run_study_chunked(

@@ -13,7 +13,9 @@ from ncstab.studies.study import Study
 if TYPE_CHECKING:  # pragma: no cover
     import xarray as xr
 
-__all__ = ["default_output_path", "run_study"]
+    from ncstab.paths.result import Path
+
+__all__ = ["default_output_path", "run_study", "study_dataset"]
 
 #: Directory of archives when a study names no ``[output] file``.
 RESULTS_DIRECTORY = FilePath("results")
@@ -52,6 +54,15 @@ def run_study(study: Study, progress: bool = False) -> xr.Dataset:
         progress=progress,
         study_text=study.text,
     )
+    return study_dataset(study, path)
+
+
+def study_dataset(study: Study, path: "Path") -> xr.Dataset:
+    """The archive Dataset of a study from its followed paths (one place for every run mode).
+
+    ``path.to_dataset`` with the study's ``[map]``, the study's attributes,
+    in the on-disk representation.
+    """
     study_map = study.map
     dataset = path.to_dataset(directions=study_map.directions if study_map else None)
     if study_map is not None and study_map.grid is not None:

@@ -32,7 +32,6 @@ from ncstab.paths.programme import (
     ProgrammeError,
     parse_programme,
 )
-from ncstab.paths.variables import EVENT_FIELDS, VARIABLES
 from ncstab.studies.expressions import ExpressionError, evaluate_expression, is_expression
 from ncstab.systems import SYSTEMS
 
