@@ -546,7 +546,6 @@ def follow_cases(
         located_y = np.full((cases.size, n_cols, layout.size), np.nan)
         exact_target = change[:, TARGET_COLUMN] & (indicators[:, TARGET_COLUMN] == 0)
         needs = np.flatnonzero(change.any(axis=1))
-        dense = {}
         if needs.size:
             # DOP853 interpolant over the step (3 extra stages, only where needed).
             b_n, s_n = sub_a.take(needs), st_a.take(needs)
@@ -554,12 +553,13 @@ def follow_cases(
                 lambda yy: _rhs(b_n, s_n, yy, layout)[0],
                 y_start[needs], y_raw_a[needs], h_a[needs], stages_a[:, needs],
             )
-            dense = {int(r): k for k, r in enumerate(needs)}
+            dense = np.full(cases.size, -1)
+            dense[needs] = np.arange(needs.size)  # row -> slot of its interpolant
         for column in np.flatnonzero(change.any(axis=0)):
             rows = np.flatnonzero(change[:, column] & ~(exact_target & (column == TARGET_COLUMN)))
             if rows.size == 0:
                 continue
-            slots = np.array([dense[int(r)] for r in rows])
+            slots = dense[rows]
 
             def evaluate(index: np.ndarray, lengths: np.ndarray, rows: np.ndarray = rows,
                          slots: np.ndarray = slots, column: int = column):
