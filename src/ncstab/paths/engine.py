@@ -263,6 +263,154 @@ def _empty_events(size: int, n: int) -> dict[str, dict[str, np.ndarray]]:
     return {name: table() for name in EVENTS}
 
 
+@dataclass
+class _Crossings:
+    """Sign changes of the indicators over one accepted step, located.
+
+    ``sigma``, ``lower``, ``upper``: (rows, columns) root and bracket in step
+    length (inf / NaN where no change); ``located_y``: (rows, columns, m)
+    states at the roots; ``located``: (rows,) number of located roots.
+    """
+
+    sigma: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    located_y: np.ndarray
+    located: np.ndarray
+
+
+def _locate_crossings(
+    batch: CaseBatch,
+    stage: StageArrays,
+    change: np.ndarray,
+    before: np.ndarray,
+    after: np.ndarray,
+    y_start: np.ndarray,
+    y_raw: np.ndarray,
+    y_end: np.ndarray,
+    h: np.ndarray,
+    stages_k: np.ndarray,
+    layout: _Layout,
+    options: PathOptions,
+) -> _Crossings:
+    """Locate every indicator sign change of a step on the DOP853 interpolant.
+
+    Root finding (Illinois) on the step length, each evaluation on the 7th-order
+    interpolant and, for laws with a total form, projected onto equilibrium.
+    """
+    rows_n, n_cols = change.shape
+    sigma = np.full((rows_n, n_cols), np.inf)
+    lower = np.full((rows_n, n_cols), np.nan)
+    upper = np.full((rows_n, n_cols), np.nan)
+    located_y = np.full((rows_n, n_cols, layout.size), np.nan)
+    located = np.zeros(rows_n, dtype=int)
+    exact_target = change[:, TARGET_COLUMN] & (after[:, TARGET_COLUMN] == 0)
+    needs = np.flatnonzero(change.any(axis=1))
+    if needs.size:
+        # DOP853 interpolant over the step (3 extra stages, only where needed).
+        b_n, s_n = batch.take(needs), stage.take(needs)
+        coefficients = dense_output(
+            lambda yy: _rhs(b_n, s_n, yy, layout)[0], y_start[needs], y_raw[needs], h[needs], stages_k[:, needs]
+        )
+        slot_of_row = np.full(rows_n, -1)
+        slot_of_row[needs] = np.arange(needs.size)
+    for column in np.flatnonzero(change.any(axis=0)):
+        rows = np.flatnonzero(change[:, column] & ~(exact_target & (column == TARGET_COLUMN)))
+        if rows.size == 0:
+            continue
+        slots = slot_of_row[rows]
+
+        def evaluate(index: np.ndarray, lengths: np.ndarray, rows: np.ndarray = rows,
+                     slots: np.ndarray = slots, column: int = column):
+            pick = rows[index]
+            b, s_ = batch.take(pick), stage.take(pick)
+            yy = evaluate_dense(y_start[pick], coefficients[:, slots[index]], lengths / h[pick])
+            if b.has_total_form:
+                yy, _ = _project_finite(b, s_, yy, np.zeros(pick.size), layout, options)
+            _, ax = _rhs(b, s_, yy, layout)
+            return _indicators(b, s_, yy, ax, layout)[:, column], yy
+
+        root, lo, hi, _, state = locate_sign_changes(
+            evaluate, h[rows], before[rows, column], after[rows, column], options.event_tol
+        )
+        sigma[rows, column], lower[rows, column], upper[rows, column] = root, lo, hi
+        located_y[rows, column] = state
+        located[rows] += 1
+    if exact_target.any():
+        rows = np.flatnonzero(exact_target)
+        sigma[rows, TARGET_COLUMN] = lower[rows, TARGET_COLUMN] = upper[rows, TARGET_COLUMN] = h[rows]
+        located_y[rows, TARGET_COLUMN] = y_end[rows]
+    return _Crossings(sigma, lower, upper, located_y, located)
+
+
+def _store_first_events(
+    events: dict[str, dict[str, np.ndarray]],
+    event_column: dict[str, list[int]],
+    cases: np.ndarray,
+    crossings: _Crossings,
+    reach: np.ndarray,
+    arclength: np.ndarray,
+    stage_index: np.ndarray,
+    batch: CaseBatch,
+    stage: StageArrays,
+    layout: _Layout,
+) -> None:
+    """Store the first occurrence of each event located within ``reach`` (step length).
+
+    ``reach`` includes the location tolerance, so an event that coincides with
+    the cut point (a hyperelastic limit point is also a Hill loss) counts.
+    """
+    for name in EVENTS:
+        columns = event_column[name]
+        sig = crossings.sigma[:, columns]
+        best = np.argmin(sig, axis=1)
+        best_sigma = sig[np.arange(cases.size), best]
+        hit = np.isfinite(best_sigma) & (best_sigma <= reach) & ~events[name]["found"][cases]
+        rows = np.flatnonzero(hit)
+        if rows.size == 0:
+            continue
+        col = np.asarray(columns)[best[rows]]
+        state = crossings.located_y[rows, col]
+        _, ax = _rhs(batch.take(rows), stage.take(rows), state, layout)
+        table = events[name]
+        target = cases[rows]
+        table["found"][target] = True
+        table["s"][target] = arclength[target] + crossings.sigma[rows, col]
+        table["s_lower"][target] = arclength[target] + crossings.lower[rows, col]
+        table["s_upper"][target] = arclength[target] + crossings.upper[rows, col]
+        table["stage"][target] = stage_index[target]
+        table["lam"][target] = state[:, layout.lam]
+        table["u"][target] = ax.evaluation.displacements
+        table["F"][target] = ax.evaluation.forces
+        table["l"][target] = ax.evaluation.q[:, 0, 0]
+        table["alpha"][target] = ax.evaluation.q[:, 0, 1]
+        table["N"][target] = ax.evaluation.normal[:, 0]
+        table["T"][target] = ax.evaluation.tangential[:, 0]
+        table["K"][target] = ax.evaluation.stiffness
+
+
+def _switch_contacts(
+    batch: CaseBatch, stage: StageArrays, y: np.ndarray, gap: np.ndarray, layout: _Layout
+) -> tuple[np.ndarray, np.ndarray]:
+    """Switch the contact state where a gap crossed zero (in ``stage``, in place).
+
+    The batch switches its springs (or, in the pure-shear limit, its state
+    coordinates).  The switch may flip the cofactor tangent, so the direction of
+    motion in (u, F, lambda) is kept: returns the new states and a mask of the
+    cases whose orientation must flip.
+    """
+    y = y.copy()
+    _, before = _rhs(batch, stage, y, layout)
+    batch.close_contact(y, stage.secondary_state, gap, layout)
+    _, after = _rhs(batch, stage, y, layout)
+
+    def motion(ax: _Aux) -> np.ndarray:
+        df = (ax.evaluation.dF_dv @ ax.dv[:, :, None])[:, :, 0]
+        return np.concatenate([ax.du, df, ax.dlam[:, None]], axis=-1)
+
+    return y, np.sum(motion(after) * motion(before), axis=-1) < 0
+
+
 def follow_cases(
     batch: CaseBatch,
     programme: LoadingProgramme,
@@ -539,48 +687,11 @@ def follow_cases(
         change = np.sign(before) * np.sign(indicators) < 0
         change[:, TARGET_COLUMN] = (before[:, TARGET_COLUMN] < 0) & (indicators[:, TARGET_COLUMN] >= 0)
 
-        n_cols = len(INDICATOR_EVENTS)
-        sigma = np.full((cases.size, n_cols), np.inf)
-        lower = np.full((cases.size, n_cols), np.nan)
-        upper = np.full((cases.size, n_cols), np.nan)
-        located_y = np.full((cases.size, n_cols, layout.size), np.nan)
-        exact_target = change[:, TARGET_COLUMN] & (indicators[:, TARGET_COLUMN] == 0)
-        needs = np.flatnonzero(change.any(axis=1))
-        if needs.size:
-            # DOP853 interpolant over the step (3 extra stages, only where needed).
-            b_n, s_n = sub_a.take(needs), st_a.take(needs)
-            coefficients = dense_output(
-                lambda yy: _rhs(b_n, s_n, yy, layout)[0],
-                y_start[needs], y_raw_a[needs], h_a[needs], stages_a[:, needs],
-            )
-            dense = np.full(cases.size, -1)
-            dense[needs] = np.arange(needs.size)  # row -> slot of its interpolant
-        for column in np.flatnonzero(change.any(axis=0)):
-            rows = np.flatnonzero(change[:, column] & ~(exact_target & (column == TARGET_COLUMN)))
-            if rows.size == 0:
-                continue
-            slots = dense[rows]
-
-            def evaluate(index: np.ndarray, lengths: np.ndarray, rows: np.ndarray = rows,
-                         slots: np.ndarray = slots, column: int = column):
-                pick = rows[index]
-                b, s_ = sub_a.take(pick), st_a.take(pick)
-                yy = evaluate_dense(y_start[pick], coefficients[:, slots[index]], lengths / h_a[pick])
-                if b.has_total_form:
-                    yy, _ = _project_finite(b, s_, yy, np.zeros(pick.size), layout, options)
-                _, ax = _rhs(b, s_, yy, layout)
-                return _indicators(b, s_, yy, ax, layout)[:, column], yy
-
-            root, lo, hi, _, state = locate_sign_changes(
-                evaluate, h_a[rows], before[rows, column], indicators[rows, column], options.event_tol
-            )
-            sigma[rows, column], lower[rows, column], upper[rows, column] = root, lo, hi
-            located_y[rows, column] = state
-            located_count[cases[rows]] += 1
-        if exact_target.any():
-            rows = np.flatnonzero(exact_target)
-            sigma[rows, TARGET_COLUMN] = lower[rows, TARGET_COLUMN] = upper[rows, TARGET_COLUMN] = h_a[rows]
-            located_y[rows, TARGET_COLUMN] = y_new[rows]
+        crossings = _locate_crossings(
+            sub_a, st_a, change, before, indicators, y_start, y_raw_a, y_new, h_a, stages_a, layout, options
+        )
+        sigma, located_y = crossings.sigma, crossings.located_y
+        located_count[cases] += crossings.located
 
         cutting = change & (stop_table[stage_index[cases]] | break_columns[None, :])
         cutting[:, TARGET_COLUMN] = change[:, TARGET_COLUMN]
@@ -590,37 +701,10 @@ def follow_cases(
         is_cut = np.isfinite(cut_sigma[np.arange(cases.size), cut_column])
         reach = np.where(is_cut, cut_sigma[np.arange(cases.size), cut_column], h_a)
 
-        # Record first occurrences of events reached in this step.
-        for name in EVENTS:
-            columns = event_column[name]
-            sig = sigma[:, columns]
-            best = np.argmin(sig, axis=1)
-            best_sigma = sig[np.arange(cases.size), best]
-            # Events that coincide with the cut point within the location
-            # tolerance (a hyperelastic limit point is also a Hill loss) count.
-            hit = np.isfinite(best_sigma) & (best_sigma <= reach + options.event_tol) & ~events[name]["found"][cases]
-            rows = np.flatnonzero(hit)
-            if rows.size == 0:
-                continue
-            col = np.asarray(columns)[best[rows]]
-            state = located_y[rows, col]
-            b, s_ = sub_a.take(rows), st_a.take(rows)
-            _, ax = _rhs(b, s_, state, layout)
-            table = events[name]
-            target = cases[rows]
-            table["found"][target] = True
-            table["s"][target] = arclength[target] + sigma[rows, col]
-            table["s_lower"][target] = arclength[target] + lower[rows, col]
-            table["s_upper"][target] = arclength[target] + upper[rows, col]
-            table["stage"][target] = stage_index[target]
-            table["lam"][target] = state[:, layout.lam]
-            table["u"][target] = ax.evaluation.displacements
-            table["F"][target] = ax.evaluation.forces
-            table["l"][target] = ax.evaluation.q[:, 0, 0]
-            table["alpha"][target] = ax.evaluation.q[:, 0, 1]
-            table["N"][target] = ax.evaluation.normal[:, 0]
-            table["T"][target] = ax.evaluation.tangential[:, 0]
-            table["K"][target] = ax.evaluation.stiffness
+        _store_first_events(
+            events, event_column, cases, crossings, reach + options.event_tol, arclength, stage_index,
+            sub_a, st_a, layout,
+        )
 
         # Advance: to the step end, or to the located cut point.
         cut_rows = np.flatnonzero(is_cut)
@@ -629,29 +713,11 @@ def follow_cases(
             y_new[cut_rows] = located_y[cut_rows, cut_column[cut_rows]]
             closing = cut_rows[break_columns[cut_column[cut_rows]]]
             if closing.size:
-                # A secondary gap crossed zero: the batch switches its springs
-                # (or, rigid, its coordinates); the stage arrays carry the state.
                 gap = np.asarray(INDICATOR_GAP)[cut_column[closing]]
-                block = st_a.secondary_state[closing].copy()
-                yy = y_new[closing]
-                b_close, s_close = sub_a.take(closing), st_a.take(closing)
-                _, ax_before = _rhs(b_close, s_close, yy, layout)
-                b_close.close_contact(yy, block, gap, layout)
-                y_new[closing] = yy
-                st_a.secondary_state[closing] = block
-                stages.secondary_state[cases[closing]] = block
-                # The switch (new springs, or new coordinates when blocking) may
-                # flip the cofactor tangent: keep the direction of motion in
-                # (u, F, lambda).
-                s_close.secondary_state = block
-                s_close.orientation = st_a.orientation[closing].copy()
-                _, ax_after = _rhs(b_close, s_close, yy, layout)
-
-                def motion(ax: _Aux) -> np.ndarray:
-                    df = (ax.evaluation.dF_dv @ ax.dv[:, :, None])[:, :, 0]
-                    return np.concatenate([ax.du, df, ax.dlam[:, None]], axis=-1)
-
-                flip = np.sum(motion(ax_after) * motion(ax_before), axis=-1) < 0
+                switched = st_a.take(closing)
+                y_new[closing], flip = _switch_contacts(sub_a.take(closing), switched, y_new[closing], gap, layout)
+                st_a.secondary_state[closing] = switched.secondary_state
+                stages.secondary_state[cases[closing]] = switched.secondary_state
                 st_a.orientation[closing[flip]] *= -1
                 stages.orientation[cases[closing[flip]]] *= -1
             column_cut = cut_column[cut_rows]
