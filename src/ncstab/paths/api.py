@@ -19,7 +19,7 @@ from ncstab.paths.rigid_model import RigidCaseBatch
 from ncstab.systems.diamond import DiamondChain
 from ncstab.systems import SYSTEMS
 
-__all__ = ["ParameterGrid", "follow"]
+__all__ = ["ParameterGrid", "case_batch", "follow"]
 
 #: Parameters every system understands besides its own and its law's.
 ENGINE_PARAMETERS = {"kappa": 1.0}
@@ -87,12 +87,19 @@ class ParameterGrid:
         return list(self.sweep) + list(self.fixed)
 
 
-def _law_batch(
+def case_batch(
     law_name: str,
     spec: SystemSpec,
     values: dict[str, np.ndarray],
     size: int,
 ) -> CaseBatch | RigidCaseBatch:
+    """The batch of ``size`` cases of one law that the engine follows.
+
+    ``values`` holds every parameter as a flat array over the cases (see
+    :meth:`ParameterGrid.case_values`); missing law or system parameters take
+    their defaults.  Used by :func:`follow` and by chunked study runs
+    (:mod:`ncstab.studies.chunked`), which follow a slice of the cases.
+    """
     definition = law_definition(law_name)
     if spec.normal == "rigid":
         alpha0 = values.get("alpha0", np.full(size, np.pi / 4))
@@ -202,7 +209,7 @@ def follow(
     results = []
     try:
         for name in law_names:
-            batch = _law_batch(name, spec, values, grid.size)
+            batch = case_batch(name, spec, values, grid.size)
             results.append(
                 follow_cases(
                     batch, programme, values, options, spec.secondary_contacts,

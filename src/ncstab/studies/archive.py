@@ -9,6 +9,9 @@ identical (``xarray.testing.assert_identical``) to the one written.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
+import contextlib
 import os
 import tempfile
 from pathlib import Path as FilePath
@@ -19,7 +22,7 @@ import numpy as np
 if TYPE_CHECKING:  # pragma: no cover - xarray is imported when an archive is used
     import xarray as xr
 
-__all__ = ["COMPRESSION", "ENGINE", "normalise_dataset", "open_study", "write_dataset"]
+__all__ = ["atomic_destination", "COMPRESSION", "ENGINE", "normalise_dataset", "open_study", "write_dataset"]
 
 #: NetCDF library used for reading and writing (NetCDF-4/HDF5 files).
 ENGINE = "netcdf4"
@@ -145,11 +148,25 @@ def write_dataset(dataset: xr.Dataset, path: str | os.PathLike[str]) -> FilePath
     destination.parent.mkdir(parents=True, exist_ok=True)
     on_disk = normalise_dataset(dataset)
     encoding = _encoding(on_disk)
-    descriptor, name = tempfile.mkstemp(dir=destination.parent, prefix=f".{destination.stem}.", suffix=".nc.tmp")
+    with atomic_destination(destination, ".nc.tmp") as temporary:
+        on_disk.to_netcdf(temporary, mode="w", format="NETCDF4", engine=ENGINE, encoding=encoding)
+    return destination
+
+
+@contextlib.contextmanager
+def atomic_destination(destination: FilePath, suffix: str = ".tmp") -> Iterator[FilePath]:
+    """Yield a temporary path beside ``destination``; on success it replaces it.
+
+    The temporary is synced to disk, given the default file mode and renamed
+    over ``destination`` (:func:`os.replace`, atomic on one file system).  If
+    anything fails -- an exception or an interrupt -- the temporary is removed
+    and ``destination`` is left as it was: never a half-written file.
+    """
+    descriptor, name = tempfile.mkstemp(dir=destination.parent, prefix=f".{destination.stem}.", suffix=suffix)
     os.close(descriptor)
     temporary = FilePath(name)
     try:
-        on_disk.to_netcdf(temporary, mode="w", format="NETCDF4", engine=ENGINE, encoding=encoding)
+        yield temporary
         with open(temporary, "rb+") as written:
             os.fsync(written.fileno())
         os.chmod(temporary, _default_mode())
@@ -157,7 +174,6 @@ def write_dataset(dataset: xr.Dataset, path: str | os.PathLike[str]) -> FilePath
     except BaseException:
         temporary.unlink(missing_ok=True)
         raise
-    return destination
 
 
 def open_study(path: str | os.PathLike[str]) -> xr.Dataset:

@@ -32,10 +32,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ncstab.paths.api import ParameterGrid, _law_batch
+from ncstab.paths.api import ParameterGrid, case_batch
 from ncstab.paths.engine import CaseResult, follow_cases
 from ncstab.paths.result import Path
-from ncstab.studies.archive import open_study, write_dataset
+from ncstab.studies.archive import atomic_destination, open_study, write_dataset
 from ncstab.studies.run import study_dataset
 from ncstab.studies.study import Study
 from ncstab.systems import SYSTEMS
@@ -175,7 +175,7 @@ def run_chunk(study: Study, law: str, start: int, stop: int) -> dict[str, np.nda
     """
     grid = ParameterGrid.from_mapping(study.parameters)
     values = _chunk_values(grid, start, stop)
-    batch = _law_batch(law, study.system, values, stop - start)
+    batch = case_batch(law, study.system, values, stop - start)
     result = follow_cases(batch, study.programme, values, study.options, study.system.secondary_contacts)
     return _flatten(result)
 
@@ -223,17 +223,8 @@ def parts_directory(output: str | os.PathLike[str]) -> FilePath:
 
 
 def _write_atomically(directory: FilePath, name: str, write: Callable[[Any], None]) -> None:
-    descriptor, temporary_name = tempfile.mkstemp(dir=directory, prefix=".tmp-", suffix=".part")
-    temporary = FilePath(temporary_name)
-    try:
-        with os.fdopen(descriptor, "wb") as handle:
-            write(handle)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.replace(temporary, directory / name)
-    except BaseException:
-        temporary.unlink(missing_ok=True)
-        raise
+    with atomic_destination(directory / name, ".part") as temporary, open(temporary, "wb") as handle:
+        write(handle)
 
 
 def _write_part(directory: FilePath, chunk: Chunk, digest: str, flat: dict[str, np.ndarray]) -> None:
