@@ -9,6 +9,7 @@ them from these expressions.
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import sympy as sp
 
@@ -112,6 +113,7 @@ def no_tension(law: LawDefinition) -> LawDefinition:
     )
 
 
+@functools.lru_cache(maxsize=None)
 def no_tension_branches(law: LawDefinition) -> tuple[LawDefinition, LawDefinition]:
     """The two smooth branches of a ``no_tension`` law: (closed, open).
 
