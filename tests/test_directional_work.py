@@ -67,6 +67,7 @@ def test_cone_limits_and_batch_shapes():
     assert np.isnan(unstable_cone(stable)[1]) and np.isnan(unstable_cone(unstable)[1])
     # A pure skew operator does no second-order work in any direction: no cone.
     assert unstable_cone(np.array([[0.0, 1.0], [-1.0, 0.0]]))[0] == 0.0
+
     rng = np.random.default_rng(3)
     batch = rng.normal(size=(7, 5, 2, 2))
     theta = np.linspace(0, np.pi, 9)
@@ -110,3 +111,9 @@ def test_path_dataset_directional_map_and_cone():
                           np.stack([np.cos(b), np.sin(b)], -1))
         np.testing.assert_allclose(roots, 0.0, rtol=0, atol=TOL)
     assert ds.d2W_dir.attrs["units"] == "1" and ds.theta.attrs["units"] == "rad"
+
+
+def test_a_path_padding_state_has_no_cone():
+    """Past a case's last state K is NaN: the cone is unknown (NaN), not empty (0)."""
+    width, lower, upper = unstable_cone(np.full((3, 2, 2), np.nan))
+    assert np.isnan(width).all() and np.isnan(lower).all() and np.isnan(upper).all()

@@ -80,13 +80,15 @@ def unstable_cone(stiffness: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nda
         ``lower``, ``upper``: the bounds of one of the two opposite cones
         (the other is shifted by pi), with lower < upper, lower in [0, pi);
         the exact roots of d2W; NaN where there is no cone or where every
-        direction is unstable.
+        direction is unstable.  All three are NaN where K is not finite (the
+        padding of a path Dataset past a case's last state).
     """
     mean, radius, phi = second_order_work_form(stiffness)
     with np.errstate(invalid="ignore", divide="ignore"):
         ratio = np.where(radius > 0, -mean / radius, np.where(mean < 0, np.inf, -np.inf))
     half_opening = np.arccos(np.clip(ratio, -1.0, 1.0))  # cos(2 theta - 2 phi) < -m/r
     width = np.where(ratio >= 1, 2 * np.pi, np.where(ratio <= -1, 0.0, 2 * (np.pi - half_opening)))
+    width = np.where(np.isfinite(stiffness).all(axis=(-2, -1)), width, np.nan)
     partial = (ratio > -1) & (ratio < 1)
     lower = np.mod(phi + 0.5 * half_opening, np.pi)
     upper = lower + (np.pi - half_opening)
