@@ -108,12 +108,8 @@ def test_the_reference_has_steps_of_different_lengths(reference):
 
 def test_a_chunked_run_writes_the_in_process_archive(study, reference, tmp_path):
     output = tmp_path / "chunks.nc"
-    dataset = run_study_chunked(study, output, chunk_cases=CHUNK_CASES)
+    assert run_study_chunked(study, output, chunk_cases=CHUNK_CASES) == output
     assert_same_archive(output, reference)
-    dataset.attrs.pop("created")
-    expected = reference.copy()
-    expected.attrs.pop("created")
-    xr.testing.assert_identical(dataset, expected)
 
 
 def test_a_killed_run_keeps_its_chunks_and_resume_computes_only_the_rest(
@@ -221,8 +217,11 @@ def test_a_run_on_an_existing_scheduler_writes_the_in_process_archive(study, ref
     distributed = pytest.importorskip("dask.distributed")
     import dask
 
+    # A worker in a process of its own, as on a remote cluster: the chunk's Dataset is
+    # pickled back to this process, which writes the part (the workers of an existing
+    # cluster may not see the output directory).
     with dask.config.set({"temporary-directory": str(tmp_path / "scratch")}), distributed.LocalCluster(
-        n_workers=1, threads_per_worker=2, processes=False, dashboard_address=":0"
+        n_workers=1, threads_per_worker=2, processes=True, dashboard_address=":0"
     ) as cluster:
         output = tmp_path / "out" / "chunks.nc"
         run_study_chunked(study, output, chunk_cases=CHUNK_CASES, scheduler=cluster.scheduler_address)

@@ -89,10 +89,12 @@ def command_run(args: argparse.Namespace) -> int:
         StudyFileError,
         default_output_path,
         load_study,
+        open_study_lazily,
         run_study,
         run_study_chunked,
         write_dataset,
     )
+    from ncstab.studies.chunked import DEFAULT_CHUNK_CASES, study_cases
 
     if args.output is not None and len(args.studies) != 1:
         print("ncstab run: -o/--output needs exactly one study file", file=sys.stderr)
@@ -120,9 +122,10 @@ def command_run(args: argparse.Namespace) -> int:
     any_failed = False
     for study in studies:
         output = Path(args.output) if args.output else default_output_path(study)
-        if chunked:
+        if chunked or study_cases(study) > DEFAULT_CHUNK_CASES:
+            # Large sweeps stream chunk by chunk to the archive: memory bounded by the chunk.
             try:
-                dataset = run_study_chunked(
+                run_study_chunked(
                     study,
                     output,
                     chunk_cases=args.chunk_cases,
@@ -135,15 +138,16 @@ def command_run(args: argparse.Namespace) -> int:
                 print(f"ncstab run: {study.name}: {error}", file=sys.stderr)
                 return 2
         else:
-            dataset = run_study(study, progress=progress)
-            write_dataset(dataset, output)
-        figures = draw_figures(dataset, output.parent, stem=output.stem)
-        print(f"{study.name}: wrote {output}")
-        for figure in figures:
-            print(f"  figure {figure}")
-        for line in _status_summary(dataset):
-            print(line)
-        any_failed |= bool((dataset["status"].astype(str).str.startswith("failed")).any())
+            write_dataset(run_study(study, progress=progress), output)
+        with open_study_lazily(output) as dataset:
+            figures = draw_figures(dataset, output.parent, stem=output.stem)
+            print(f"{study.name}: wrote {output}")
+            for figure in figures:
+                print(f"  figure {figure}")
+            summary = _status_summary(dataset)
+            for line in summary:
+                print(line)
+            any_failed |= any(line.startswith("  FAILED") for line in summary)
     return 1 if any_failed else 0
 
 

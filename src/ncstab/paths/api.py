@@ -14,12 +14,12 @@ from ncstab.paths.model import CaseBatch
 from ncstab.paths.options import PathOptions, SystemSpec
 from ncstab.paths.programme import LoadingProgramme, parse_programme
 from ncstab.paths.result import Path
-from ncstab.paths.variables import RESERVED_NAMES
+from ncstab.paths.variables import CASE_DIMENSION, RESERVED_NAMES
 from ncstab.paths.rigid_model import RigidCaseBatch
 from ncstab.systems.diamond import DiamondChain
 from ncstab.systems import SYSTEMS
 
-__all__ = ["ParameterGrid", "case_batch", "follow"]
+__all__ = ["CaseRange", "ParameterGrid", "case_batch", "follow"]
 
 #: Parameters every system understands besides its own and its law's.
 ENGINE_PARAMETERS = {"kappa": 1.0}
@@ -85,6 +85,56 @@ class ParameterGrid:
     @property
     def names(self) -> list[str]:
         return list(self.sweep) + list(self.fixed)
+
+
+@dataclass(frozen=True)
+class CaseRange:
+    """The flat cases ``start:stop`` of a :class:`ParameterGrid`, as a one-dimensional grid.
+
+    A chunk of a large sweep (:mod:`ncstab.studies.chunked`) is followed and
+    turned into a Dataset on its own; its swept parameters become one ``case``
+    dimension (flat index into the whole grid, C order) so that the chunk's
+    Dataset can be written into the whole archive's hyperslab.  It offers what
+    :class:`ncstab.paths.Path` uses of a grid: ``sweep``, ``fixed``, ``shape``,
+    ``size`` and ``case_values()``.
+    """
+
+    grid: ParameterGrid
+    start: int
+    stop: int
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.start < self.stop <= self.grid.size:
+            raise ValueError(f"cases {self.start}:{self.stop} are not a run of the grid's {self.grid.size} cases")
+
+    @property
+    def sweep(self) -> dict[str, np.ndarray]:
+        return {CASE_DIMENSION: np.arange(self.start, self.stop, dtype=np.int64)}
+
+    @property
+    def fixed(self) -> dict[str, float]:
+        return self.grid.fixed
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return (self.stop - self.start,)
+
+    @property
+    def size(self) -> int:
+        return self.stop - self.start
+
+    @property
+    def names(self) -> list[str]:
+        return self.grid.names
+
+    def case_values(self) -> dict[str, np.ndarray]:
+        """``grid.case_values()[name][start:stop]``, without building the whole grid."""
+        values: dict[str, np.ndarray] = {}
+        if self.grid.sweep:
+            positions = np.unravel_index(np.arange(self.start, self.stop), self.grid.shape)
+            values.update({name: sweep[k] for (name, sweep), k in zip(self.grid.sweep.items(), positions)})
+        values.update({name: np.full(self.size, value) for name, value in self.grid.fixed.items()})
+        return values
 
 
 def case_batch(

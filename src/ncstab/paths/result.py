@@ -19,14 +19,14 @@ from ncstab.operators.indicators import (
 from ncstab.paths.engine import CaseResult
 from ncstab.paths.options import PathOptions, SystemSpec
 from ncstab.paths.programme import EVENTS, LoadingProgramme, Stage
-from ncstab.paths.variables import EVENT_FIELDS, VARIABLES
+from ncstab.paths.variables import CASE_DIMENSION, EVENT_FIELDS, VARIABLES
 
 if TYPE_CHECKING:  # pragma: no cover
     import xarray
 
     from ncstab.paths.api import ParameterGrid
 
-__all__ = ["Path"]
+__all__ = ["Path", "parameter_attributes"]
 
 
 @dataclass(frozen=True)
@@ -231,7 +231,7 @@ class Path:
             "j": ("j", np.arange(1, n + 1, dtype=np.int32), {"long_name": "matrix column (dof)"}),
         }
         for name, values in self.grid.sweep.items():
-            coords[name] = (name, values, _parameter_attrs(name))
+            coords[name] = (name, values, parameter_attributes(name))
         if directions is not None:
             coords["theta"] = ("theta", theta, {
                 "units": "rad", "long_name": "loading direction theta",
@@ -290,13 +290,15 @@ class Path:
         return out
 
 
-def _parameter_attrs(name: str) -> dict[str, str]:
+def parameter_attributes(name: str) -> dict[str, str]:
+    """Attributes of the coordinate of a swept parameter (units, long_name, description)."""
     from ncstab.laws.definition import ALPHA0_SPEC, GAMMA_SPEC
 
     known = {
         "gamma": ("1", "stiffness ratio gamma", GAMMA_SPEC.description),
         "alpha0": ("rad", "initial orientation alpha0", ALPHA0_SPEC.description),
         "kappa": ("1", "secondary contact stiffness ratio kappa", "stiffness of the secondary-contact springs / k_n"),
+        CASE_DIMENSION: ("1", "case index", "flat index of the case in the whole sweep (C order over the swept parameters)"),
     }
     units, long_name, description = known.get(name, ("1", name, f"study parameter {name}"))
     return {"units": units, "long_name": long_name, "description": description}

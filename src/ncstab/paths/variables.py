@@ -6,7 +6,10 @@ on archive variables.  All quantities are dimensionless (seed Eq. 37).
 
 from __future__ import annotations
 
-__all__ = ["VARIABLES", "EVENT_FIELDS", "RESERVED_NAMES"]
+__all__ = ["CASE_DIMENSION", "VARIABLES", "EVENT_FIELDS", "RESERVED_NAMES"]
+
+#: Dimension of the flat cases of one chunk of a sweep (ncstab.paths.api.CaseRange).
+CASE_DIMENSION = "case"
 
 #: name -> (units, long_name, description)
 VARIABLES: dict[str, tuple[str, str, str]] = {
@@ -64,7 +67,7 @@ EVENT_FIELDS: dict[str, tuple[str, str, str]] = {
 #: of the Dataset, and words of the study syntax.
 RESERVED_NAMES = frozenset(
     {"law", "law_class", "step", "dof", "i", "j", "cycle", "cycle_stage", "cycle_direction", "theta",
-     "current", "pi", "e"}
+     "current", "pi", "e", CASE_DIMENSION, "map_D1", "map_D2"}
     | set(VARIABLES)
     | {f"{event}_{suffix}" for event in (
         "limit_point", "hill_loss", "controllability_loss", "flutter_onset", "secondary_contact", "turning_point",

@@ -8,7 +8,7 @@ written atomically to NetCDF (:func:`write_dataset`) and read back identical
 and optionally on a dask cluster (:func:`run_study_chunked`, ``docs/scale.md``).
 """
 
-from ncstab.studies.archive import normalise_dataset, open_study, write_dataset
+from ncstab.studies.archive import normalise_dataset, open_study, open_study_lazily, write_dataset
 from ncstab.studies.chunked import ResumeError, run_study_chunked
 from ncstab.studies.expressions import ExpressionError, evaluate_expression
 from ncstab.studies.run import default_output_path, run_study
@@ -33,6 +33,7 @@ __all__ = [
     "load_study",
     "normalise_dataset",
     "open_study",
+    "open_study_lazily",
     "parse_study",
     "run_study",
     "run_study_chunked",

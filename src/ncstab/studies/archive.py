@@ -22,7 +22,15 @@ import numpy as np
 if TYPE_CHECKING:  # pragma: no cover - xarray is imported when an archive is used
     import xarray as xr
 
-__all__ = ["atomic_destination", "COMPRESSION", "ENGINE", "normalise_dataset", "open_study", "write_dataset"]
+__all__ = [
+    "atomic_destination",
+    "COMPRESSION",
+    "ENGINE",
+    "normalise_dataset",
+    "open_study",
+    "open_study_lazily",
+    "write_dataset",
+]
 
 #: NetCDF library used for reading and writing (NetCDF-4/HDF5 files).
 ENGINE = "netcdf4"
@@ -197,3 +205,22 @@ def open_study(path: str | os.PathLike[str]) -> xr.Dataset:
     with xr.open_dataset(path, engine=ENGINE) as dataset:
         dataset.load()
         return normalise_dataset(dataset)
+
+
+@contextlib.contextmanager
+def open_study_lazily(path: str | os.PathLike[str]) -> Iterator[xr.Dataset]:
+    """An archive open for reading, its arrays loaded only when used; closed on exit.
+
+    For archives too large to hold in memory (a big sweep): a figure that
+    needs a few variables reads only those.  The Dataset is in the
+    representation :func:`open_study` gives (string variables are read at once).
+
+    Yields
+    ------
+    xarray.Dataset
+        Valid inside the ``with`` block only.
+    """
+    import xarray as xr
+
+    with xr.open_dataset(path, engine=ENGINE) as dataset:
+        yield normalise_dataset(dataset)

@@ -1,42 +1,53 @@
-"""Large sweeps: a study run in chunks of bounded size, resumable, optionally on dask.
+"""Large sweeps: a study run in chunks of bounded size, streamed to its archive, resumable, on dask.
 
 The cases of each law (flat, C order over the sweep, as in
 :class:`ncstab.paths.api.ParameterGrid`) are split into chunks of at most
-``chunk_cases`` cases.  Each chunk is followed by :func:`run_chunk`, a pure
-function of ``(study, law, start, stop)`` (so dask can ship it to a worker),
-and written atomically, as soon as it finishes, to a part file
-``<archive>.parts/<law>_<k>.npz``.  A killed run keeps the finished parts;
-``resume=True`` computes only the missing ones.  When every part exists, the
-per-law :class:`~ncstab.paths.engine.CaseResult` objects are rebuilt from the
-parts and the archive is assembled by the same code as the in-process run
-(:meth:`ncstab.paths.Path.to_dataset`), written with
-:func:`~ncstab.studies.write_dataset` (atomic), and the parts are removed.
+``chunk_cases`` cases.  Each chunk is followed and turned into its own Dataset
+by :func:`run_chunk`, a pure function of ``(study, law, start, stop)`` (so dask
+can ship it to a worker), then
 
-Memory: computing is bounded by the chunk size (one chunk per worker at a
-time); the final assembly loads every part, so it needs the memory of the
-whole archive (as the in-process run does).
+1. kept, atomically, as a part file ``<archive>.parts/<law>_<k>.npz`` (the
+   chunk's Dataset: arrays, and a JSON header of names and attributes), so that a killed run keeps its finished
+   chunks and ``resume=True`` computes only the missing ones;
+2. appended at once to the archive being written
+   (:class:`~ncstab.studies.streaming.ArchiveStream`, a temporary file in the
+   parts directory), into the hyperslabs of its cases.
+
+When every chunk is in, the archive is closed and moved into place
+(:func:`os.replace`), and the parts are removed.  The archive is identical
+(after :func:`~ncstab.studies.open_study`, but for the ``created`` time stamp)
+to the one the in-process run writes (:func:`~ncstab.studies.run_study` and
+:func:`~ncstab.studies.write_dataset`): each case gets the same floating-point
+operations whatever its batch.
+
+Memory is bounded by the chunk size whatever the sweep size: the process holds
+one chunk's Dataset at a time, and on dask at most two chunks per worker are in
+flight.
 """
 
 from __future__ import annotations
 
 import contextlib
+import gc
 import hashlib
 import json
+import math
 import os
 import shutil
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path as FilePath
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ncstab.paths.api import ParameterGrid, case_batch
-from ncstab.paths.engine import CaseResult, follow_cases
+from ncstab.paths.api import CaseRange, ParameterGrid, case_batch
+from ncstab.paths.engine import follow_cases
 from ncstab.paths.result import Path
-from ncstab.studies.archive import atomic_destination, open_study, write_dataset
+from ncstab.studies.archive import atomic_destination, open_study
 from ncstab.studies.run import study_dataset
+from ncstab.studies.streaming import ArchiveStream
 from ncstab.studies.study import Study
 from ncstab.systems import SYSTEMS
 
@@ -46,19 +57,32 @@ if TYPE_CHECKING:  # pragma: no cover
 __all__ = [
     "DEFAULT_CHUNK_CASES",
     "Chunk",
+    "default_chunk_cases",
     "ResumeError",
     "parts_directory",
     "plan_chunks",
     "run_chunk",
     "run_study_chunked",
+    "study_cases",
     "study_digest",
 ]
 
-#: Cases per chunk when none is given: a few tens of MB of states per chunk.
+#: Cases per chunk when none is given in process: about 100 MB per chunk for a
+#: two-stage study of ~100 stored states per case.
 DEFAULT_CHUNK_CASES = 4096
+#: Smallest default chunk on a dask cluster (smaller ones cost more in
+#: per-chunk overhead than they gain in balance).
+MIN_DEFAULT_CHUNK_CASES = 256
+#: Chunks per worker a default chunk size aims at on a dask cluster (balance).
+CHUNKS_PER_WORKER = 4
+#: Chunks in flight per worker on a dask cluster: one computing, one waiting
+#: (bounds the memory of finished chunks not yet appended).
+IN_FLIGHT_PER_WORKER = 2
 #: Version of the part-file layout (stored in the manifest).
-PARTS_FORMAT = 1
+PARTS_FORMAT = 2
 MANIFEST = "manifest.json"
+#: The archive being written, inside the parts directory until it is complete.
+ARCHIVE_IN_PROGRESS = "archive.nc.tmp"
 #: Message of the error raised when dask.distributed is needed but missing.
 DISTRIBUTED_MISSING = (
     "running on a dask cluster (--workers / --scheduler) needs dask.distributed: "
@@ -117,100 +141,6 @@ def plan_chunks(study: Study, chunk_cases: int) -> list[Chunk]:
     return chunks
 
 
-def _chunk_values(grid: ParameterGrid, start: int, stop: int) -> dict[str, np.ndarray]:
-    """``ParameterGrid.case_values()[name][start:stop]`` without building the whole grid."""
-    size = stop - start
-    values: dict[str, np.ndarray] = {}
-    if grid.sweep:
-        positions = np.unravel_index(np.arange(start, stop), grid.shape)
-        values.update({name: sweep[k] for (name, sweep), k in zip(grid.sweep.items(), positions)})
-    values.update({name: np.full(size, value) for name, value in grid.fixed.items()})
-    return values
-
-
-def _flatten(result: CaseResult) -> dict[str, np.ndarray]:
-    """A CaseResult as ``"group/key" -> array`` (an ``.npz`` holds no nested dicts)."""
-    flat = {"n_steps": result.n_steps, "status": result.status, "message": result.message}
-    flat.update({f"steps/{k}": v for k, v in result.steps.items()})
-    flat.update({f"counters/{k}": v for k, v in result.counters.items()})
-    flat.update({f"cycles/{k}": v for k, v in result.cycles.items()})
-    for event, table in result.events.items():
-        flat.update({f"events/{event}/{k}": v for k, v in table.items()})
-    return flat
-
-
-def _unflatten(flat: dict[str, np.ndarray]) -> CaseResult:
-    groups: dict[str, dict[str, np.ndarray]] = {"steps": {}, "counters": {}, "cycles": {}}
-    events: dict[str, dict[str, np.ndarray]] = {}
-    for key, value in flat.items():
-        parts = key.split("/")
-        if parts[0] == "events":
-            events.setdefault(parts[1], {})[parts[2]] = value
-        elif parts[0] in groups:
-            groups[parts[0]][parts[1]] = value
-    return CaseResult(
-        steps=groups["steps"],
-        n_steps=flat["n_steps"],
-        status=flat["status"],
-        message=flat["message"],
-        events=events,
-        counters=groups["counters"],
-        cycles=groups["cycles"],
-    )
-
-
-def run_chunk(study: Study, law: str, start: int, stop: int) -> dict[str, np.ndarray]:
-    """Follow the cases ``start:stop`` of one law of a study.
-
-    A pure function of its arguments (picklable in and out), so that it runs
-    alike in process and on a dask worker.  Each case is followed
-    independently of the others in its batch, so a chunk gives exactly the
-    numbers the whole-law batch gives for the same cases.
-
-    Returns
-    -------
-    dict of numpy.ndarray
-        The :class:`~ncstab.paths.engine.CaseResult` of the chunk, flattened to
-        ``"group/key" -> array`` (``steps`` arrays ``(stop - start, n_steps_max, ...)``).
-    """
-    grid = ParameterGrid.from_mapping(study.parameters)
-    values = _chunk_values(grid, start, stop)
-    batch = case_batch(law, study.system, values, stop - start)
-    result = follow_cases(batch, study.programme, values, study.options, study.system.secondary_contacts)
-    return _flatten(result)
-
-
-def _pad_steps(array: np.ndarray, length: int) -> np.ndarray:
-    """Pad the step axis (1) to ``length`` as the engine does: -1 for integers, NaN otherwise."""
-    pad = length - array.shape[1]
-    if not pad:
-        return array
-    fill = -1 if array.dtype.kind == "i" else np.nan
-    return np.concatenate([array, np.full((array.shape[0], pad) + array.shape[2:], fill, dtype=array.dtype)], 1)
-
-
-def _merge(parts: list[CaseResult]) -> CaseResult:
-    """One law's CaseResult from its chunks, in case order (steps padded to the longest)."""
-    length = max(int(p.steps["s"].shape[1]) for p in parts)
-    steps = {key: np.concatenate([_pad_steps(p.steps[key], length) for p in parts]) for key in parts[0].steps}
-    cycles = {
-        key: parts[0].cycles[key] if key == "stage" else np.concatenate([p.cycles[key] for p in parts])
-        for key in parts[0].cycles
-    }
-    return CaseResult(
-        steps=steps,
-        n_steps=np.concatenate([p.n_steps for p in parts]),
-        status=np.concatenate([p.status for p in parts]),
-        message=np.concatenate([p.message for p in parts]),
-        events={
-            event: {key: np.concatenate([p.events[event][key] for p in parts]) for key in table}
-            for event, table in parts[0].events.items()
-        },
-        counters={key: np.concatenate([p.counters[key] for p in parts]) for key in parts[0].counters},
-        cycles=cycles,
-    )
-
-
 def study_digest(study: Study) -> str:
     """SHA-256 of the study text: parts are only ever combined for the same study."""
     return hashlib.sha256(study.text.encode("utf-8")).hexdigest()
@@ -220,29 +150,6 @@ def parts_directory(output: str | os.PathLike[str]) -> FilePath:
     """Where the parts of the archive ``output`` are kept while it is computed: ``<output>.parts``."""
     output = FilePath(output)
     return output.with_name(output.name + ".parts")
-
-
-def _write_atomically(directory: FilePath, name: str, write: Callable[[Any], None]) -> None:
-    with atomic_destination(directory / name, ".part") as temporary, open(temporary, "wb") as handle:
-        write(handle)
-
-
-def _write_part(directory: FilePath, chunk: Chunk, digest: str, flat: dict[str, np.ndarray]) -> None:
-    header = {"study_sha256": np.array(digest), "start": np.array(chunk.start), "stop": np.array(chunk.stop)}
-    _write_atomically(directory, chunk.file_name, lambda handle: np.savez(handle, **header, **flat))
-
-
-def _read_part(directory: FilePath, chunk: Chunk, digest: str) -> CaseResult:
-    with np.load(directory / chunk.file_name, allow_pickle=False) as stored:
-        flat = {key: stored[key] for key in stored.files}
-    if str(flat.pop("study_sha256")) != digest:
-        raise ResumeError("part", f"{directory / chunk.file_name} belongs to another study")
-    start, stop = int(flat.pop("start")), int(flat.pop("stop"))
-    if (start, stop) != (chunk.start, chunk.stop):
-        raise ResumeError(
-            "part", f"{directory / chunk.file_name} holds cases {start}:{stop}, expected {chunk.start}:{chunk.stop}"
-        )
-    return _unflatten(flat)
 
 
 def _prepare_parts(directory: FilePath, study: Study, chunk_cases: int | None, resume: bool) -> int:
@@ -264,8 +171,8 @@ def _prepare_parts(directory: FilePath, study: Study, chunk_cases: int | None, r
                 f"{directory}: the parts were written with chunk_cases = {manifest['chunk_cases']}, "
                 f"not {chunk_cases}; resume with the same chunk size (or none)",
             )
-        for stale in directory.glob(".tmp-*"):
-            stale.unlink()
+        for stale in [*directory.glob(".*"), directory / ARCHIVE_IN_PROGRESS]:
+            stale.unlink(missing_ok=True)  # temporaries of the killed run
         return int(manifest["chunk_cases"])
     chunk_cases = DEFAULT_CHUNK_CASES if chunk_cases is None else int(chunk_cases)
     if chunk_cases < 1:
@@ -279,7 +186,8 @@ def _prepare_parts(directory: FilePath, study: Study, chunk_cases: int | None, r
         "study_sha256": study_digest(study),
         "chunk_cases": chunk_cases,
     }
-    _write_atomically(directory, MANIFEST, lambda handle: handle.write(json.dumps(manifest, indent=1).encode()))
+    with atomic_destination(directory / MANIFEST, ".part") as temporary:
+        temporary.write_text(json.dumps(manifest, indent=1))
     return chunk_cases
 
 
@@ -292,18 +200,145 @@ def _distributed() -> Any:
     return distributed
 
 
-def _compute(
-    study: Study,
-    chunks: list[Chunk],
-    done: Callable[[Chunk, dict[str, np.ndarray]], None],
-    workers: int | None,
-    scheduler: str | None,
-) -> None:
-    """Run the chunks (in process, or on dask) and call ``done`` as each one finishes."""
-    if workers is None and scheduler is None:
-        for chunk in chunks:
-            done(chunk, run_chunk(study, chunk.law, chunk.start, chunk.stop))
-        return
+
+
+def study_cases(study: Study) -> int:
+    """Cases per law of a study (the size of its parameter grid)."""
+    return ParameterGrid.from_mapping(study.parameters).size
+
+
+def default_chunk_cases(study: Study, workers: int | None = None) -> int:
+    """Chunk size when none is given.
+
+    In process, :data:`DEFAULT_CHUNK_CASES`.  On ``workers`` dask workers,
+    small enough to give each worker about :data:`CHUNKS_PER_WORKER` chunks
+    (load balance: laws and parameter regions differ in cost), but at least
+    :data:`MIN_DEFAULT_CHUNK_CASES` and at most :data:`DEFAULT_CHUNK_CASES`.
+    """
+    if not workers:
+        return DEFAULT_CHUNK_CASES
+    total = ParameterGrid.from_mapping(study.parameters).size * len(study.laws)
+    balanced = math.ceil(total / (CHUNKS_PER_WORKER * int(workers)))
+    return max(MIN_DEFAULT_CHUNK_CASES, min(DEFAULT_CHUNK_CASES, balanced))
+
+
+def run_chunk(study: Study, law: str, start: int, stop: int) -> "xr.Dataset":
+    """Follow the cases ``start:stop`` of one law of a study; their Dataset.
+
+    A pure function of its arguments (picklable in and out), so that it runs
+    alike in process and on a dask worker.  Each case is followed
+    independently of the others in its batch, so a chunk gives exactly the
+    numbers the whole-law batch gives for the same cases.
+
+    Returns
+    -------
+    xarray.Dataset
+        The study's Dataset (:func:`~ncstab.studies.run.study_dataset`) for
+        these cases: dimension ``law`` of size 1, and ``case`` (flat indices
+        ``start:stop``) in place of the swept parameters.
+    """
+    grid = CaseRange(ParameterGrid.from_mapping(study.parameters), start, stop)
+    values = grid.case_values()
+    batch = case_batch(law, study.system, values, grid.size)
+    result = follow_cases(batch, study.programme, values, study.options, study.system.secondary_contacts)
+    system_class = SYSTEMS[study.system.name]
+    path = Path(
+        laws=(law,),
+        grid=grid,  # type: ignore[arg-type]  # a ParameterGrid in all that Path uses
+        system=study.system,
+        programme=study.programme,
+        options=study.options,
+        results=(result,),
+        dof_names=system_class.dof_names,  # type: ignore[attr-defined]
+        force_names=system_class.force_names,  # type: ignore[attr-defined]
+        study_text=study.text,
+    )
+    return study_dataset(study, path)
+
+
+def _json_attribute(value: Any) -> Any:
+    if isinstance(value, np.ndarray):
+        return {"__ndarray__": value.tolist(), "dtype": value.dtype.str}
+    return value
+
+
+def _attribute_from_json(value: Any) -> Any:
+    if isinstance(value, dict) and "__ndarray__" in value:
+        return np.asarray(value["__ndarray__"], dtype=value["dtype"])
+    return value
+
+
+def _write_part(directory: FilePath, chunk: Chunk, digest: str, dataset: "xr.Dataset") -> None:
+    """Keep a chunk's Dataset as ``directory/<law>_<k>.npz``, atomically.
+
+    Arrays as they are (no pickle); names, dimensions and attributes in a JSON
+    header.  An ``.npz`` is written and read some 20 times faster than a
+    NetCDF file of ~100 small variables, and parts are only ncstab's own
+    scratch, read back by :func:`_read_part`.
+    """
+    header = {
+        "study_sha256": digest,
+        "start": chunk.start,
+        "stop": chunk.stop,
+        "attrs": {k: _json_attribute(v) for k, v in dataset.attrs.items()},
+        "variables": {
+            name: {
+                "dims": list(variable.dims),
+                "attrs": {k: _json_attribute(v) for k, v in variable.attrs.items()},
+                "coordinate": name in dataset.coords,
+            }
+            for name, variable in dataset.variables.items()
+        },
+    }
+    arrays = {f"variable_{k}": variable.values for k, variable in enumerate(dataset.variables.values())}
+    with atomic_destination(directory / chunk.file_name, ".part") as temporary, open(temporary, "wb") as handle:
+        np.savez(handle, header=np.array(json.dumps(header)), **arrays)
+
+
+def _read_part(directory: FilePath, chunk: Chunk, digest: str) -> "xr.Dataset":
+    import xarray as xr
+
+    path = directory / chunk.file_name
+    with np.load(path, allow_pickle=False) as stored:
+        header = json.loads(str(stored["header"]))
+        if header["study_sha256"] != digest:
+            raise ResumeError("part", f"{path} belongs to another study")
+        if (header["start"], header["stop"]) != (chunk.start, chunk.stop):
+            raise ResumeError(
+                "part", f"{path} holds cases {header['start']}:{header['stop']}, expected {chunk.start}:{chunk.stop}"
+            )
+        variables = {
+            name: xr.Variable(
+                spec["dims"],
+                stored[f"variable_{k}"],
+                {key: _attribute_from_json(v) for key, v in spec["attrs"].items()},
+            )
+            for k, (name, spec) in enumerate(header["variables"].items())
+        }
+    coordinates = {name: v for name, v in variables.items() if header["variables"][name]["coordinate"]}
+    data = {name: v for name, v in variables.items() if name not in coordinates}
+    attrs = {key: _attribute_from_json(v) for key, v in header["attrs"].items()}
+    return xr.Dataset(data, coords=coordinates, attrs=attrs)
+
+
+def compute_part(study: Study, chunk: Chunk, directory: str | None, digest: str) -> "xr.Dataset | None":
+    """Run a chunk; keep it as a part file in ``directory`` if given (returns None), else return it.
+
+    On a local dask cluster the workers share the parts directory and write
+    their parts themselves (nothing large travels back); on an existing
+    cluster (``--scheduler``), which may not see the directory, the chunk's
+    Dataset is returned and the client writes the part.
+    """
+    dataset = run_chunk(study, chunk.law, chunk.start, chunk.stop)
+    if directory is None:
+        return dataset
+    _write_part(FilePath(directory), chunk, digest, dataset)
+    return None
+
+
+@contextlib.contextmanager
+def _cluster_client(workers: int | None, scheduler: str | None) -> Iterator[Any]:
+    """A dask.distributed Client: on a new local cluster of ``workers`` processes, or on ``scheduler``."""
     distributed = _distributed()
     with contextlib.ExitStack() as stack:
         address: Any = scheduler
@@ -322,35 +357,38 @@ def _compute(
                     local_directory=scratch,
                 )
             )
-        client = stack.enter_context(distributed.Client(address))
-        futures = {
-            client.submit(run_chunk, study, chunk.law, chunk.start, chunk.stop, pure=False): chunk
-            for chunk in chunks
-        }
-        for future in distributed.as_completed(futures):
-            done(futures.pop(future), future.result())
-            future.release()
+        yield stack.enter_context(distributed.Client(address))
 
 
-def _assemble(study: Study, chunks: list[Chunk], directory: FilePath, digest: str) -> xr.Dataset:
-    """The study's Dataset from its parts, exactly as :func:`~ncstab.studies.run_study` builds it."""
-    grid = ParameterGrid.from_mapping(study.parameters)
-    system_class = SYSTEMS[study.system.name]
-    results = tuple(
-        _merge([_read_part(directory, chunk, digest) for chunk in chunks if chunk.law == law]) for law in study.laws
-    )
-    path = Path(
-        laws=tuple(study.laws),
-        grid=grid,
-        system=study.system,
-        programme=study.programme,
-        options=study.options,
-        results=results,
-        dof_names=system_class.dof_names,  # type: ignore[attr-defined]
-        force_names=system_class.force_names,  # type: ignore[attr-defined]
-        study_text=study.text,
-    )
-    return study_dataset(study, path)
+def _on_cluster(
+    client: Any, study: Study, chunks: list[Chunk], directory: FilePath, digest: str, shared: bool
+) -> Iterator[tuple[Chunk, "xr.Dataset | None"]]:
+    """Run the chunks on a dask cluster, a bounded number in flight; yield each as it finishes."""
+    distributed = _distributed()
+    slots = max(1, IN_FLIGHT_PER_WORKER * sum(client.nthreads().values()))
+    pending = iter(chunks)
+    futures: dict[Any, Chunk] = {}
+    where = str(directory) if shared else None
+
+    def submit() -> None:
+        chunk = next(pending, None)
+        if chunk is not None:
+            futures[client.submit(compute_part, study, chunk, where, digest, pure=False)] = chunk
+
+    for _ in range(slots):
+        submit()
+    queue = distributed.as_completed(list(futures))
+    for future in queue:
+        chunk = futures.pop(future)
+        before = set(futures)
+        submit()
+        for new in set(futures) - before:
+            queue.add(new)
+        result = future.result()
+        future.release()
+        del future
+        yield chunk, result
+        del result  # not held while the next chunk is awaited
 
 
 def run_study_chunked(
@@ -361,23 +399,24 @@ def run_study_chunked(
     workers: int | None = None,
     scheduler: str | None = None,
     progress: bool = False,
-) -> xr.Dataset:
-    """Run a study in chunks, each kept on disk as it finishes, and write its archive.
+) -> FilePath:
+    """Run a study in chunks, each kept on disk and appended to the archive as it finishes.
 
     The archive is identical (``xarray.testing.assert_identical`` after
     :func:`~ncstab.studies.open_study`, but for the ``created`` time stamp) to
     the one :func:`~ncstab.studies.run_study` and
-    :func:`~ncstab.studies.write_dataset` give.
+    :func:`~ncstab.studies.write_dataset` give, and the memory used is bounded
+    by the chunk size, not by the sweep.
 
     Parameters
     ----------
     study
         A validated study (:func:`~ncstab.studies.load_study`).
     output
-        The archive to write (``.nc``); parts are kept in ``<output>.parts``
-        until it is written, then removed.
+        The archive to write (``.nc``); while it is computed, its chunks and
+        the archive in progress are kept in ``<output>.parts``, removed at the end.
     chunk_cases
-        At most this many cases per chunk (default :data:`DEFAULT_CHUNK_CASES`;
+        At most this many cases per chunk (default :func:`default_chunk_cases`;
         on resume, the interrupted run's).
     resume
         Keep the parts an interrupted run of the same study left, and compute
@@ -392,8 +431,8 @@ def run_study_chunked(
 
     Returns
     -------
-    xarray.Dataset
-        The archive's Dataset (as :func:`~ncstab.studies.open_study` reads it).
+    pathlib.Path
+        The archive written (open it with :func:`~ncstab.studies.open_study`).
 
     Raises
     ------
@@ -414,29 +453,57 @@ def run_study_chunked(
     if resume and not directory.exists() and output.exists():
         finished = open_study(output)
         if finished.attrs.get("study") == study.text:
-            return finished
+            return output
     output.parent.mkdir(parents=True, exist_ok=True)
+    if chunk_cases is None and not (resume and (directory / MANIFEST).exists()):
+        chunk_cases = default_chunk_cases(study, workers)
     chunk_cases = _prepare_parts(directory, study, chunk_cases, resume)
     chunks = plan_chunks(study, chunk_cases)
+    kept = [chunk for chunk in chunks if (directory / chunk.file_name).exists()]
     missing = [chunk for chunk in chunks if not (directory / chunk.file_name).exists()]
     bar = None
     if progress:
         from tqdm.auto import tqdm
 
         bar = tqdm(total=sum(c.size for c in chunks), unit="case", desc="ncstab", leave=False)
-        bar.update(sum(c.size for c in chunks) - sum(c.size for c in missing))
+    archive = ArchiveStream(directory / ARCHIVE_IN_PROGRESS, tuple(study.laws), ParameterGrid.from_mapping(study.parameters))
 
-    def done(chunk: Chunk, flat: dict[str, np.ndarray]) -> None:
-        _write_part(directory, chunk, digest, flat)
+    def append(chunk: Chunk, dataset: "xr.Dataset") -> None:
+        archive.append(dataset, chunk.law, chunk.start, chunk.stop)
+        # The chunk's objects include reference cycles (engine state, xarray
+        # internals): free them now, not at the collector's next whim, so that
+        # one chunk at a time is held.
+        gc.collect()
         if bar is not None:
             bar.update(chunk.size)
 
     try:
-        _compute(study, missing, done, workers, scheduler)
+        for chunk in kept:
+            append(chunk, _read_part(directory, chunk, digest))  # (not held after the call)
+        if workers is None and scheduler is None:
+            for chunk in missing:
+                _write_part(directory, chunk, digest, dataset := run_chunk(study, chunk.law, chunk.start, chunk.stop))
+                append(chunk, dataset)
+                del dataset  # one chunk held at a time: not this one while the next is computed
+        elif missing:
+            with _cluster_client(workers, scheduler) as client:
+                shared = scheduler is None  # a local cluster sees the parts directory
+                for chunk, dataset in _on_cluster(client, study, missing, directory, digest, shared):
+                    if dataset is None:
+                        dataset = _read_part(directory, chunk, digest)
+                    else:
+                        _write_part(directory, chunk, digest, dataset)
+                    append(chunk, dataset)
+                    del dataset
+        archive.close()
+    except BaseException:
+        archive.abort()
+        (directory / ARCHIVE_IN_PROGRESS).unlink(missing_ok=True)
+        raise
     finally:
         if bar is not None:
             bar.close()
-    dataset = _assemble(study, chunks, directory, digest)
-    write_dataset(dataset, output)
+    with atomic_destination(output, ".nc.tmp") as temporary:
+        os.replace(directory / ARCHIVE_IN_PROGRESS, temporary)
     shutil.rmtree(directory)
-    return dataset
+    return output
