@@ -1,6 +1,6 @@
 """Loading programmes and the batched path engine (layer ``paths/``)."""
 
-from ncstab.paths.api import ParameterGrid, follow
+from ncstab.paths.api import CaseRange, ParameterGrid, case_batch, follow
 from ncstab.paths.engine import CaseResult, follow_cases
 from ncstab.paths.model import CaseBatch
 from ncstab.paths.options import PathOptions, SystemSpec
@@ -17,6 +17,7 @@ from ncstab.paths.result import Path
 __all__ = [
     "EVENTS",
     "CaseBatch",
+    "CaseRange",
     "CaseResult",
     "CycleStage",
     "LoadingProgramme",
@@ -26,6 +27,7 @@ __all__ = [
     "ProgrammeError",
     "Stage",
     "SystemSpec",
+    "case_batch",
     "follow",
     "follow_cases",
     "parse_programme",
