@@ -32,7 +32,7 @@ from ncstab.paths.events import (
     indicator_values,
     locate_sign_changes,
 )
-from ncstab.paths.integrator import ERROR_EXPONENT, dense_output, dop853_step, evaluate_dense
+from ncstab.paths.integrator import END_STAGE, ERROR_EXPONENT, dense_output, dop853_step, evaluate_dense
 from ncstab.paths.model import CaseBatch, Evaluation
 from ncstab.paths.options import PathOptions
 from ncstab.paths.programme import CURRENT, EVENTS, CycleStage, LoadingProgramme, Stage
@@ -138,21 +138,30 @@ def _advance(
     h: np.ndarray,
     layout: _Layout,
     options: PathOptions,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    f0: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, "_Aux | None"]:
     """One step of length h per case: DOP853, then Newton projection (total forms).
 
-    Returns the new states, the error norms (inf where Newton failed), the
-    unprojected DOP853 end states and the stage derivatives (for dense output).
+    ``f0`` is dy/ds at ``y0`` where already known (first same as last: the
+    derivative at the end of the previous accepted step).  Returns the new
+    states, the error norms (inf where Newton failed), the unprojected DOP853
+    end states, the stage derivatives (for dense output) and, where no
+    projection moved the end states, the auxiliary quantities at them (from
+    the last stage, which is evaluated there), else ``None``.
     """
+    last: list[_Aux] = []
 
     def rhs(y: np.ndarray) -> np.ndarray:
-        return _rhs(batch, stage, y, layout)[0]
+        dy, aux = _rhs(batch, stage, y, layout)
+        last[:] = [aux]
+        return dy
 
-    y_raw, err, stages = dop853_step(rhs, y0, h, options.rtol, options.atol)
+    y_raw, err, stages = dop853_step(rhs, y0, h, options.rtol, options.atol, f0=f0)
     y1 = y_raw.copy()
     if batch.has_total_form and y1.shape[0]:
         y1, err = _project_finite(batch, stage, y1, err, layout, options)
-    return y1, err, y_raw, stages
+        return y1, err, y_raw, stages, None
+    return y1, err, y_raw, stages, last[0]
 
 
 def _project_finite(
@@ -303,39 +312,39 @@ def _locate_crossings(
     lower = np.full((rows_n, n_cols), np.nan)
     upper = np.full((rows_n, n_cols), np.nan)
     located_y = np.full((rows_n, n_cols, layout.size), np.nan)
-    located = np.zeros(rows_n, dtype=int)
     exact_target = change[:, TARGET_COLUMN] & (after[:, TARGET_COLUMN] == 0)
-    needs = np.flatnonzero(change.any(axis=1))
-    if needs.size:
+    searched = change.copy()
+    searched[:, TARGET_COLUMN] &= ~exact_target
+    # Every (row, column) pair with a sign change is one root search; all
+    # pairs of the step advance together (each pair's iterates depend on that
+    # pair only, so this equals one search per column, with fewer passes).
+    pair_row, pair_column = np.nonzero(searched)
+    located = np.bincount(pair_row, minlength=rows_n)
+    if pair_row.size:
         # DOP853 interpolant over the step (3 extra stages, only where needed).
+        needs = np.flatnonzero(searched.any(axis=1))
         b_n, s_n = batch.take(needs), stage.take(needs)
         coefficients = dense_output(
             lambda yy: _rhs(b_n, s_n, yy, layout)[0], y_start[needs], y_raw[needs], h[needs], stages_k[:, needs]
         )
         slot_of_row = np.full(rows_n, -1)
         slot_of_row[needs] = np.arange(needs.size)
-    for column in np.flatnonzero(change.any(axis=0)):
-        rows = np.flatnonzero(change[:, column] & ~(exact_target & (column == TARGET_COLUMN)))
-        if rows.size == 0:
-            continue
-        slots = slot_of_row[rows]
 
-        def evaluate(index: np.ndarray, lengths: np.ndarray, rows: np.ndarray = rows,
-                     slots: np.ndarray = slots, column: int = column):
-            pick = rows[index]
+        def evaluate(index: np.ndarray, lengths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            pick = pair_row[index]
             b, s_ = batch.take(pick), stage.take(pick)
-            yy = evaluate_dense(y_start[pick], coefficients[:, slots[index]], lengths / h[pick])
+            yy = evaluate_dense(y_start[pick], coefficients[:, slot_of_row[pick]], lengths / h[pick])
             if b.has_total_form:
                 yy, _ = _project_finite(b, s_, yy, np.zeros(pick.size), layout, options)
             _, ax = _rhs(b, s_, yy, layout)
-            return _indicators(b, s_, yy, ax, layout)[:, column], yy
+            values = _indicators(b, s_, yy, ax, layout)
+            return values[np.arange(pick.size), pair_column[index]], yy
 
         root, lo, hi, _, state = locate_sign_changes(
-            evaluate, h[rows], before[rows, column], after[rows, column], options.event_tol
+            evaluate, h[pair_row], before[pair_row, pair_column], after[pair_row, pair_column], options.event_tol
         )
-        sigma[rows, column], lower[rows, column], upper[rows, column] = root, lo, hi
-        located_y[rows, column] = state
-        located[rows] += 1
+        sigma[pair_row, pair_column], lower[pair_row, pair_column], upper[pair_row, pair_column] = root, lo, hi
+        located_y[pair_row, pair_column] = state
     if exact_target.any():
         rows = np.flatnonzero(exact_target)
         sigma[rows, TARGET_COLUMN] = lower[rows, TARGET_COLUMN] = upper[rows, TARGET_COLUMN] = h[rows]
@@ -446,6 +455,8 @@ def follow_cases(
     dofs, forces = batch.system.dof_names, batch.system.force_names
     y = np.zeros((size, layout.size))
     y[:, layout.v] = batch.initial_state()
+    # dy/ds at each case's current state (first same as last for the next step).
+    derivative = np.full((size, layout.size), np.nan)
     stage_index = np.zeros(size, dtype=int)
     status = np.full(size, RUNNING, dtype=object)
     message = np.full(size, "", dtype=object)
@@ -613,6 +624,7 @@ def follow_cases(
                 sub_go = batch.take(gi)
                 st_go = stages.take(gi)
                 dy, aux = _rhs(sub_go, st_go, y[gi], layout)
+                derivative[gi] = dy
                 previous[gi] = _indicators(sub_go, st_go, y[gi], aux, layout)
                 record(gi, y[gi], aux)
                 cycle_start_work[gi] = y[gi, layout.work]
@@ -630,7 +642,7 @@ def follow_cases(
         st = stages.take(active)
         y0 = y[active]
         h0 = np.minimum(step_size[active], options.max_step)
-        y1, err, y_raw, stages_k = _advance(sub, st, y0, h0, layout, options)
+        y1, err, y_raw, stages_k, end_aux = _advance(sub, st, y0, h0, layout, options, derivative[active])
         accept = err <= 1.0
         with np.errstate(divide="ignore", invalid="ignore"):
             factor = np.where(err == 0, 10.0, np.clip(0.9 * err**ERROR_EXPONENT, 0.2, 10.0))
@@ -656,7 +668,10 @@ def follow_cases(
         y_new = y1[local]
         y_raw_a = y_raw[local]
         stages_a = stages_k[:, local]
-        _, aux = _rhs(sub_a, st_a, y_new, layout)
+        if end_aux is None:
+            dy_new, aux = _rhs(sub_a, st_a, y_new, layout)
+        else:  # the last DOP853 stage was evaluated at the (unprojected) end state
+            dy_new, aux = stages_k[END_STAGE][local], end_aux.take(local)
         q = aux.evaluation.q
         length, angle = q[:, 0, 0], q[:, 0, 1]
         finite = np.isfinite(y_new).all(-1) & np.isfinite(aux.evaluation.forces).all(-1)
@@ -682,6 +697,7 @@ def follow_cases(
         y_start, h_a, y_new = y_start[keep], h_a[keep], y_new[keep]
         y_raw_a, stages_a = y_raw_a[keep], stages_a[:, keep]
         aux = aux.take(keep)
+        dy_new = dy_new[keep]
         indicators = _indicators(sub_a, st_a, y_new, aux, layout)
         before = previous[cases]
         change = np.sign(before) * np.sign(indicators) < 0
@@ -742,7 +758,8 @@ def follow_cases(
                 st_a.cycles_done[cyc] += 1
                 stages.cycles_done[where] += 1
             b, s_ = sub_a.take(cut_rows), st_a.take(cut_rows)
-            _, ax_cut = _rhs(b, s_, y_new[cut_rows], layout)
+            dy_cut, ax_cut = _rhs(b, s_, y_new[cut_rows], layout)
+            dy_new[cut_rows] = dy_cut
             ind_cut = _indicators(b, s_, y_new[cut_rows], ax_cut, layout)
             # Keep the post-crossing sign of a break column (secondary contact)
             # so the same crossing is not detected twice.
@@ -751,6 +768,7 @@ def follow_cases(
             indicators[cut_rows] = ind_cut
             aux.put(cut_rows, ax_cut)
         y[cases] = y_new
+        derivative[cases] = dy_new
         arclength[cases] += reach
         accepted_count[cases] += 1
         previous[cases] = indicators

@@ -12,12 +12,14 @@ from typing import Callable
 import numpy as np
 from scipy.integrate._ivp import dop853_coefficients as dop
 
-__all__ = ["combine_stages", "dop853_step", "dense_output", "evaluate_dense", "error_norm", "ERROR_EXPONENT"]
+__all__ = ["END_STAGE", "combine_stages", "dop853_step", "dense_output", "evaluate_dense", "error_norm", "ERROR_EXPONENT"]
 
 _A = dop.A[: dop.N_STAGES, : dop.N_STAGES]
 _B = dop.B
 _E3 = dop.E3
 _E5 = dop.E5
+#: Index of the stage evaluated at the end of the step (first same as last).
+END_STAGE = dop.N_STAGES
 #: Step-size controller exponent -1/(order + 1) with error order 7 (as scipy).
 ERROR_EXPONENT = -1.0 / 8.0
 
