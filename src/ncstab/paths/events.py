@@ -137,7 +137,8 @@ def locate_sign_changes(
     phi0, phi1
         Indicator at sigma = 0 and sigma = h.
     tol
-        Stop when the bracket is narrower than ``tol`` (or phi is exactly 0).
+        Stop when the bracket is narrower than ``tol`` (or phi is exactly 0, or
+        +-TINY, the indicators' signed zero).
 
     Returns
     -------
@@ -175,7 +176,10 @@ def locate_sign_changes(
         f_c[active] = values
         a_side = active[np.sign(values) == np.sign(f_lower[active])]
         b_side = active[np.sign(values) == np.sign(f_upper[active])]
-        exact = active[(values == 0) | ~np.isfinite(values)]
+        # TINY is the indicators' exact zero (signed by the branch): a root hit
+        # exactly.  Taking it as one end of the bracket instead would stall
+        # regula falsi there and leave ~15 bisections to close the bracket.
+        exact = active[(np.abs(values) <= TINY) | ~np.isfinite(values)]
         # Illinois: halve the retained end's value when the same side moves twice.
         halve_upper = a_side[side[a_side] == 1]
         f_upper[halve_upper] *= 0.5
