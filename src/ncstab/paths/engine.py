@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from dataclasses import fields as dataclass_fields
 from typing import Callable
 
 import numpy as np
@@ -29,6 +30,7 @@ from ncstab.paths.events import (
     CYCLE_COLUMN,
     INDICATOR_GAP,
     TARGET_COLUMN,
+    TURNING_COLUMN,
     indicator_values,
     locate_sign_changes,
 )
@@ -76,32 +78,87 @@ class _Layout:
         self.size = n + 2 + n_internal
 
 
-def _rhs(batch: CaseBatch, stage: StageArrays, y: np.ndarray, layout: _Layout) -> tuple[np.ndarray, _Aux]:
-    """dy/ds: oriented unit tangent, internal-variable rates, work rate."""
+def _rhs(
+    batch: CaseBatch, stage: StageArrays, y: np.ndarray, layout: _Layout, evaluation: Evaluation | None = None
+) -> tuple[np.ndarray, _Aux]:
+    """dy/ds: oriented unit tangent, internal-variable rates, work rate.
+
+    ``evaluation`` is ``batch.evaluate`` at ``y`` where already known.
+    """
     v, lam, internal = y[:, layout.v], y[:, layout.lam], y[:, layout.internal]
-    evaluation = batch.evaluate(v, internal, stage.secondary_state)
+    if evaluation is None:
+        evaluation = batch.evaluate(v, internal, stage.secondary_state)
     dv, du, dlam, _ = path_tangent(evaluation.du_dv, evaluation.dF_dv, stage, lam)
     dinternal = batch.internal_rate(evaluation, dv, stage.secondary_state)
-    dwork = 0.5 * np.sum(evaluation.forces * du, axis=-1)
-    dy = np.concatenate([dv, dlam[:, None], dinternal, dwork[:, None]], axis=-1)
+    dy = np.empty(y.shape)
+    dy[:, layout.v] = dv
+    dy[:, layout.lam] = dlam
+    dy[:, layout.internal] = dinternal
+    dy[:, layout.work] = 0.5 * np.sum(evaluation.forces * du, axis=-1)
     return dy, _Aux(evaluation, dv, du, dlam)
+
+
+def _gather_evaluations(pieces: list[tuple[np.ndarray, Evaluation]], size: int) -> Evaluation:
+    """One Evaluation of ``size`` rows from pieces (row indices, Evaluation of those rows)."""
+    if len(pieces) == 1 and pieces[0][0].size == size:
+        return pieces[0][1]
+    rows = np.concatenate([index for index, _ in pieces])
+    order = np.argsort(rows, kind="stable")
+    parts = [piece for _, piece in pieces]
+    values = []
+    for f in dataclass_fields(Evaluation):
+        arrays = [getattr(part, f.name) for part in parts]
+        values.append(None if arrays[0] is None else np.concatenate(arrays)[order])
+    return Evaluation(*values)
+
+
+def _newton_correction_2(
+    matrix_u: np.ndarray, matrix_f: np.ndarray, force_controlled: np.ndarray, dg: np.ndarray, residual: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Minimum-norm correction for n = 2 in closed form: z = (M M^T + g' g'^T)^-1 r,
+    dv = -M^T z; returns (dv, z, singular), singular marking the rows whose
+    finite normal matrix could not be inverted (for a least-squares fallback)."""
+    fc0, fc1 = force_controlled[:, 0], force_controlled[:, 1]
+    m00 = np.where(fc0, matrix_f[:, 0, 0], matrix_u[:, 0, 0])
+    m01 = np.where(fc0, matrix_f[:, 0, 1], matrix_u[:, 0, 1])
+    m10 = np.where(fc1, matrix_f[:, 1, 0], matrix_u[:, 1, 0])
+    m11 = np.where(fc1, matrix_f[:, 1, 1], matrix_u[:, 1, 1])
+    g0, g1 = dg[:, 0], dg[:, 1]
+    a00 = (m00 * m00 + m01 * m01) + g0 * g0
+    a01 = (m00 * m10 + m01 * m11) + g0 * g1
+    a11 = (m10 * m10 + m11 * m11) + g1 * g1
+    r0, r1 = residual[:, 0], residual[:, 1]
+    with np.errstate(all="ignore"):
+        det = a00 * a11 - a01 * a01
+        z = np.empty(residual.shape)
+        z[:, 0] = (a11 * r0 - a01 * r1) / det
+        z[:, 1] = (a00 * r1 - a01 * r0) / det
+    z0, z1 = z[:, 0], z[:, 1]
+    dv = np.empty(residual.shape)
+    dv[:, 0] = -(m00 * z0 + m10 * z1)
+    dv[:, 1] = -(m01 * z0 + m11 * z1)
+    singular = np.isfinite(a00) & np.isfinite(a01) & np.isfinite(a11) & ~np.isfinite(z).all(axis=-1)
+    return dv, z, singular
 
 
 def _project(
     batch: CaseBatch, stage: StageArrays, y: np.ndarray, layout: _Layout, options: PathOptions
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, Evaluation]:
     """Newton projection of (v, lambda) onto equilibrium + control constraints.
 
     Solves P u(v) + Q F(v) = g(lambda) by minimum-norm Gauss--Newton corrections
     (the system has one more unknown than equations).  Returns the projected
-    states and a mask of the cases that converged to ``options.newton_tol``.
+    states, a mask of the cases that converged to ``options.newton_tol`` and
+    ``batch.evaluate`` at the projected states (the last residual check
+    evaluates there: callers need not evaluate again).
     """
     y = y.copy()
-    converged = np.zeros(y.shape[0], dtype=bool)
-    todo = np.arange(y.shape[0])
+    size_all = y.shape[0]
+    converged = np.zeros(size_all, dtype=bool)
+    todo = np.arange(size_all)
+    pieces: list[tuple[np.ndarray, Evaluation]] = []
+    sub, st = batch, stage
     for _ in range(options.newton_max_iter + 1):
-        sub = batch.take(todo) if todo.size < y.shape[0] else batch
-        st = stage.take(todo) if todo.size < y.shape[0] else stage
         v, lam = y[todo, layout.v], y[todo, layout.lam]
         with np.errstate(all="ignore"):
             evaluation = sub.evaluate(v, y[todo, layout.internal], st.secondary_state)
@@ -111,24 +168,40 @@ def _project(
         converged[todo[ok]] = True
         keep = ~ok & np.isfinite(size)
         if not keep.any():
+            pieces.append((todo, evaluation))
+            todo = todo[:0]
             break
-        todo, residual = todo[keep], residual[keep]
-        st = st.take(np.flatnonzero(keep))
-        _, dg = st.control_path(lam[keep])
-        matrix = control_matrix(evaluation.du_dv[keep], evaluation.dF_dv[keep], st.force_controlled)
-        normal_matrix = matrix @ np.swapaxes(matrix, -1, -2) + dg[:, :, None] * dg[:, None, :]
-        with np.errstate(all="ignore"):
-            try:
-                z = np.linalg.solve(normal_matrix, residual[..., None])[..., 0]
-            except np.linalg.LinAlgError:
-                z = np.stack([np.linalg.lstsq(a, r, rcond=None)[0] for a, r in zip(normal_matrix, residual)])
-        dv = -np.einsum("bji,bj->bi", matrix, z)
+        if not keep.all():
+            pieces.append((todo[~keep], evaluation.take(~keep)))
+        kept = np.flatnonzero(keep)
+        todo, residual = todo[kept], residual[kept]
+        st = st.take(kept)
+        sub = sub.take(kept)
+        _, dg = st.control_path(lam[kept])
+        du_dv, df_dv = evaluation.du_dv[kept], evaluation.dF_dv[kept]
+        if dg.shape[-1] == 2:
+            dv, z, singular = _newton_correction_2(du_dv, df_dv, st.force_controlled, dg, residual)
+        else:
+            singular = np.ones(kept.size, dtype=bool)
+            dv = z = np.empty(residual.shape)
+        if singular.any():  # rank-deficient normal matrix (or n != 2): least squares per case
+            rows = np.flatnonzero(singular)
+            matrix = control_matrix(du_dv[rows], df_dv[rows], st.force_controlled[rows])
+            normal_matrix = matrix @ np.swapaxes(matrix, -1, -2) + dg[rows, :, None] * dg[rows, None, :]
+            with np.errstate(all="ignore"):
+                z[rows] = np.stack(
+                    [np.linalg.lstsq(a, r, rcond=None)[0] for a, r in zip(normal_matrix, residual[rows])]
+                )
+            dv[rows] = -np.einsum("bji,bj->bi", matrix, z[rows])
         y[todo, layout.v] += dv
         y[todo, layout.lam] += np.sum(dg * z, axis=-1)
         # Keep the work W = int F . du / 2 consistent with the corrected path.
-        du = (evaluation.du_dv[keep] @ dv[:, :, None])[:, :, 0]
-        y[todo, layout.work] += 0.5 * np.sum(evaluation.forces[keep] * du, axis=-1)
-    return y, converged
+        du = (du_dv @ dv[:, :, None])[:, :, 0]
+        y[todo, layout.work] += 0.5 * np.sum(evaluation.forces[kept] * du, axis=-1)
+    if todo.size:  # out of iterations: evaluate at the last corrected states
+        with np.errstate(all="ignore"):
+            pieces.append((todo, sub.evaluate(y[todo, layout.v], y[todo, layout.internal], st.secondary_state)))
+    return y, converged, _gather_evaluations(pieces, size_all)
 
 
 def _advance(
@@ -139,15 +212,17 @@ def _advance(
     layout: _Layout,
     options: PathOptions,
     f0: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, "_Aux | None"]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, "_Aux | Evaluation | None"]:
     """One step of length h per case: DOP853, then Newton projection (total forms).
 
     ``f0`` is dy/ds at ``y0`` where already known (first same as last: the
     derivative at the end of the previous accepted step).  Returns the new
     states, the error norms (inf where Newton failed), the unprojected DOP853
-    end states, the stage derivatives (for dense output) and, where no
-    projection moved the end states, the auxiliary quantities at them (from
-    the last stage, which is evaluated there), else ``None``.
+    end states, the stage derivatives (for dense output) and what is already
+    known at the new states: without projection the auxiliary quantities
+    (an ``_Aux``, from the last stage, which is evaluated there); with it the
+    Newton projection's last evaluation (an ``Evaluation``, or ``None`` where
+    some states were not projected).
     """
     last: list[_Aux] = []
 
@@ -159,22 +234,30 @@ def _advance(
     y_raw, err, stages = dop853_step(rhs, y0, h, options.rtol, options.atol, f0=f0)
     y1 = y_raw.copy()
     if batch.has_total_form and y1.shape[0]:
-        y1, err = _project_finite(batch, stage, y1, err, layout, options)
-        return y1, err, y_raw, stages, None
+        y1, err, evaluation = _project_finite(batch, stage, y1, err, layout, options)
+        return y1, err, y_raw, stages, evaluation
     return y1, err, y_raw, stages, last[0]
 
 
 def _project_finite(
     batch: CaseBatch, stage: StageArrays, y: np.ndarray, err: np.ndarray, layout: _Layout, options: PathOptions
-) -> tuple[np.ndarray, np.ndarray]:
-    """Newton-project the finite states; err = inf where projection fails."""
+) -> tuple[np.ndarray, np.ndarray, Evaluation | None]:
+    """Newton-project the finite states; err = inf where projection fails.
+
+    Also returns the evaluation at the projected states when every state
+    was projected (else ``None``).
+    """
     y, err = y.copy(), err.copy()
     index = np.flatnonzero(np.isfinite(err))
+    evaluation = None
     if index.size:
-        projected, converged = _project(batch.take(index), stage.take(index), y[index], layout, options)
+        if index.size == y.shape[0]:
+            projected, converged, evaluation = _project(batch, stage, y, layout, options)
+        else:
+            projected, converged, _ = _project(batch.take(index), stage.take(index), y[index], layout, options)
         y[index] = projected
         err[index[~converged]] = np.inf
-    return y, err
+    return y, err, evaluation
 
 
 def _indicators(batch: CaseBatch, stage: StageArrays, y: np.ndarray, aux: _Aux, layout: _Layout) -> np.ndarray:
@@ -334,11 +417,18 @@ def _locate_crossings(
             pick = pair_row[index]
             b, s_ = batch.take(pick), stage.take(pick)
             yy = evaluate_dense(y_start[pick], coefficients[:, slot_of_row[pick]], lengths / h[pick])
+            columns = pair_column[index]
             if b.has_total_form:
-                yy, _ = _project_finite(b, s_, yy, np.zeros(pick.size), layout, options)
-            _, ax = _rhs(b, s_, yy, layout)
-            values = _indicators(b, s_, yy, ax, layout)
-            return values[np.arange(pick.size), pair_column[index]], yy
+                yy, _, evaluation = _project_finite(b, s_, yy, np.zeros(pick.size), layout, options)
+            else:
+                evaluation = b.evaluate(yy[:, layout.v], yy[:, layout.internal], s_.secondary_state)
+            lam = yy[:, layout.lam]
+            if (columns == TURNING_COLUMN).any():  # only the turning point needs the tangent
+                _, _, dlam, _ = path_tangent(evaluation.du_dv, evaluation.dF_dv, s_, lam)
+            else:
+                dlam = np.full(pick.size, np.nan)
+            values = indicator_values(evaluation, s_, lam, dlam)
+            return values[np.arange(pick.size), columns], yy
 
         root, lo, hi, _, state = locate_sign_changes(
             evaluate, h[pair_row], before[pair_row, pair_column], after[pair_row, pair_column], options.event_tol
@@ -668,10 +758,10 @@ def follow_cases(
         y_new = y1[local]
         y_raw_a = y_raw[local]
         stages_a = stages_k[:, local]
-        if end_aux is None:
-            dy_new, aux = _rhs(sub_a, st_a, y_new, layout)
-        else:  # the last DOP853 stage was evaluated at the (unprojected) end state
+        if isinstance(end_aux, _Aux):  # the last DOP853 stage was evaluated at the end state
             dy_new, aux = stages_k[END_STAGE][local], end_aux.take(local)
+        else:  # the Newton projection's last evaluation, where it covers every case
+            dy_new, aux = _rhs(sub_a, st_a, y_new, layout, None if end_aux is None else end_aux.take(local))
         q = aux.evaluation.q
         length, angle = q[:, 0, 0], q[:, 0, 1]
         finite = np.isfinite(y_new).all(-1) & np.isfinite(aux.evaluation.forces).all(-1)

@@ -32,7 +32,7 @@ from ncstab.paths.model import Evaluation
 from ncstab.paths.programme import EVENTS
 from ncstab.paths.tangent_field import StageArrays, control_matrix
 
-__all__ = ["CYCLE_COLUMN", "INDICATOR_EVENTS", "INDICATOR_GAP", "TARGET_COLUMN", "indicator_values", "locate_sign_changes"]
+__all__ = ["CYCLE_COLUMN", "INDICATOR_EVENTS", "INDICATOR_GAP", "TARGET_COLUMN", "TURNING_COLUMN", "indicator_values", "locate_sign_changes"]
 
 #: Event name of every indicator column (two columns for the two secondary gaps).
 INDICATOR_EVENTS = (
@@ -58,6 +58,8 @@ SIGN_NOISE = 1e-13
 TINY = 1e-300
 #: Column of the end-of-cycle indicator (cycle stages: lambda - 2 pi (k + 1)).
 CYCLE_COLUMN = INDICATOR_EVENTS.index("cycle_end")
+#: Column of the turning-point indicator (dlambda/ds: the only one needing the path tangent).
+TURNING_COLUMN = INDICATOR_EVENTS.index("turning_point")
 #: Column of the stage-target indicator.
 TARGET_COLUMN = len(INDICATOR_EVENTS) - 1
 assert set(INDICATOR_EVENTS) - {"normal_contact", "cycle_end", "stage_target"} == set(EVENTS)
