@@ -196,7 +196,12 @@ def _project(
         y[todo, layout.v] += dv
         y[todo, layout.lam] += np.sum(dg * z, axis=-1)
         # Keep the work W = int F . du / 2 consistent with the corrected path.
-        du = (du_dv @ dv[:, :, None])[:, :, 0]
+        if dv.shape[-1] == 2:
+            du = np.empty(dv.shape)
+            du[:, 0] = du_dv[:, 0, 0] * dv[:, 0] + du_dv[:, 0, 1] * dv[:, 1]
+            du[:, 1] = du_dv[:, 1, 0] * dv[:, 0] + du_dv[:, 1, 1] * dv[:, 1]
+        else:
+            du = (du_dv @ dv[:, :, None])[:, :, 0]
         y[todo, layout.work] += 0.5 * np.sum(evaluation.forces[kept] * du, axis=-1)
     if todo.size:  # out of iterations: evaluate at the last corrected states
         with np.errstate(all="ignore"):
@@ -264,36 +269,58 @@ def _indicators(batch: CaseBatch, stage: StageArrays, y: np.ndarray, aux: _Aux, 
     return indicator_values(aux.evaluation, stage, y[:, layout.lam], aux.dlam)
 
 
-@dataclass
 class _Recorder:
-    """Accumulates stored states; assembled into padded (B, steps, ...) arrays."""
+    """Stores states straight into padded ``(B, capacity, ...)`` arrays.
 
-    size: int
-    chunks: list[dict[str, np.ndarray]] = field(default_factory=list)
+    Each case's states go to its next free position; the capacity grows
+    geometrically, so a sweep costs one scatter per stored state and field
+    (no per-step chunks to concatenate and sort at the end).
+    """
+
+    def __init__(self, size: int) -> None:
+        self.size = size
+        self.count = np.zeros(size, dtype=int)
+        self.arrays: dict[str, np.ndarray] | None = None
+        self.capacity = 0
+
+    @staticmethod
+    def _blank(shape: tuple[int, ...], dtype: np.dtype) -> np.ndarray:
+        return np.full(shape, -1 if np.dtype(dtype).kind == "i" else np.nan, dtype=dtype)
 
     def add(self, case: np.ndarray, **values: np.ndarray) -> None:
-        # Empty chunks are kept: they give every field its shape and dtype even
-        # when no case stores a state (all fail at the first stage start).
-        self.chunks.append({"case": case, **values})
+        values = {key: np.asarray(value) for key, value in values.items()}
+        position = self.count[case]
+        needed = int(position.max()) + 1 if case.size else 0
+        if self.arrays is None:
+            # Created even when no case stores a state (all fail at the first
+            # stage start): every field still gets its shape and dtype.
+            self.capacity = max(needed, 16)
+            self.arrays = {
+                key: self._blank((self.size, self.capacity) + value.shape[1:], value.dtype)
+                for key, value in values.items()
+            }
+        elif needed > self.capacity:
+            capacity = max(needed, 2 * self.capacity)
+            for key, array in self.arrays.items():
+                grown = self._blank((self.size, capacity) + array.shape[2:], array.dtype)
+                grown[:, : self.capacity] = array
+                self.arrays[key] = grown
+            self.capacity = capacity
+        for key, value in values.items():
+            self.arrays[key][case, position] = value
+        self.count[case] += 1
+
+    @property
+    def started(self) -> bool:
+        return self.arrays is not None
 
     def assemble(self) -> tuple[dict[str, np.ndarray], np.ndarray]:
-        cases = np.concatenate([c["case"] for c in self.chunks])
-        order = np.argsort(cases, kind="stable")
-        counts = np.bincount(cases, minlength=self.size)
-        length = int(counts.max()) if counts.size else 0
-        starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-        sorted_cases = cases[order]
-        position = np.arange(cases.size) - starts[sorted_cases]
-        out: dict[str, np.ndarray] = {}
-        for key in self.chunks[0]:
-            if key == "case":
-                continue
-            values = np.concatenate([c[key] for c in self.chunks])[order]
-            fill = -1 if values.dtype.kind == "i" else np.nan
-            array = np.full((self.size, length) + values.shape[1:], fill, dtype=values.dtype)
-            array[sorted_cases, position] = values
-            out[key] = array
-        return out, counts
+        assert self.arrays is not None
+        length = int(self.count.max()) if self.size else 0
+        # Views, not copies: the capacity left over is less than the length
+        # (geometric growth), and copying every field cost more than the rest
+        # of the bookkeeping together.
+        return {key: array[:, :length] for key, array in self.arrays.items()}, self.count
 
 
 @dataclass
@@ -360,15 +387,26 @@ class _Crossings:
     """Sign changes of the indicators over one accepted step, located.
 
     ``sigma``, ``lower``, ``upper``: (rows, columns) root and bracket in step
-    length (inf / NaN where no change); ``located_y``: (rows, columns, m)
-    states at the roots; ``located``: (rows,) number of located roots.
+    length (inf / NaN where no change); ``located``: (rows,) number of located
+    roots.  The states at the roots are stored for the located pairs only:
+    ``slot`` (rows, columns) indexes ``states`` (pairs, m), -1 where none.
     """
 
     sigma: np.ndarray
     lower: np.ndarray
     upper: np.ndarray
-    located_y: np.ndarray
+    slot: np.ndarray
+    states: np.ndarray
     located: np.ndarray
+
+    def located_y(self, rows: np.ndarray, columns: np.ndarray) -> np.ndarray:
+        """States at the roots of (rows, columns) pairs, ``(len(rows), m)`` (NaN where none)."""
+        slot = self.slot[rows, columns]
+        out = self.states[np.maximum(slot, 0)] if self.states.shape[0] else np.full(
+            (slot.size, self.states.shape[1]), np.nan
+        )
+        out[slot < 0] = np.nan
+        return out
 
 
 def _locate_crossings(
@@ -394,7 +432,6 @@ def _locate_crossings(
     sigma = np.full((rows_n, n_cols), np.inf)
     lower = np.full((rows_n, n_cols), np.nan)
     upper = np.full((rows_n, n_cols), np.nan)
-    located_y = np.full((rows_n, n_cols, layout.size), np.nan)
     exact_target = change[:, TARGET_COLUMN] & (after[:, TARGET_COLUMN] == 0)
     searched = change.copy()
     searched[:, TARGET_COLUMN] &= ~exact_target
@@ -434,12 +471,17 @@ def _locate_crossings(
             evaluate, h[pair_row], before[pair_row, pair_column], after[pair_row, pair_column], options.event_tol
         )
         sigma[pair_row, pair_column], lower[pair_row, pair_column], upper[pair_row, pair_column] = root, lo, hi
-        located_y[pair_row, pair_column] = state
+        pair_states = state
+    else:
+        pair_states = np.empty((0, layout.size))
+    slot = np.full((rows_n, n_cols), -1)
+    slot[pair_row, pair_column] = np.arange(pair_row.size)
     if exact_target.any():
         rows = np.flatnonzero(exact_target)
         sigma[rows, TARGET_COLUMN] = lower[rows, TARGET_COLUMN] = upper[rows, TARGET_COLUMN] = h[rows]
-        located_y[rows, TARGET_COLUMN] = y_end[rows]
-    return _Crossings(sigma, lower, upper, located_y, located)
+        slot[rows, TARGET_COLUMN] = pair_states.shape[0] + np.arange(rows.size)
+        pair_states = np.concatenate([pair_states, y_end[rows]])
+    return _Crossings(sigma, lower, upper, slot, pair_states, located)
 
 
 def _store_first_events(
@@ -469,7 +511,7 @@ def _store_first_events(
         if rows.size == 0:
             continue
         col = np.asarray(columns)[best[rows]]
-        state = crossings.located_y[rows, col]
+        state = crossings.located_y(rows, col)
         _, ax = _rhs(batch.take(rows), stage.take(rows), state, layout)
         table = events[name]
         target = cases[rows]
@@ -709,7 +751,7 @@ def follow_cases(
                 which = index[bad & (reasons == reason)]
                 fail(which, "singular_control" if "singular" in reason else "bad_stage_start", reason)
             go = ~bad & ~zero_length
-            if go.any() or not recorder.chunks:
+            if go.any() or not recorder.started:
                 gi = index[go]
                 sub_go = batch.take(gi)
                 st_go = stages.take(gi)
@@ -751,17 +793,24 @@ def follow_cases(
         if local.size == 0:
             continue
         cases = active[local]
-        sub_a = sub.take(local)
-        st_a = st.take(local)
-        y_start = y0[local]
-        h_a = h0[local]
-        y_new = y1[local]
-        y_raw_a = y_raw[local]
-        stages_a = stages_k[:, local]
-        if isinstance(end_aux, _Aux):  # the last DOP853 stage was evaluated at the end state
-            dy_new, aux = stages_k[END_STAGE][local], end_aux.take(local)
-        else:  # the Newton projection's last evaluation, where it covers every case
-            dy_new, aux = _rhs(sub_a, st_a, y_new, layout, None if end_aux is None else end_aux.take(local))
+        if local.size == active.size:  # every step accepted: no copies (st is a copy of stages already)
+            sub_a, st_a, y_start, h_a, y_new, y_raw_a, stages_a = sub, st, y0, h0, y1, y_raw, stages_k
+            if isinstance(end_aux, _Aux):
+                dy_new, aux = stages_k[END_STAGE].copy(), end_aux
+            else:
+                dy_new, aux = _rhs(sub_a, st_a, y_new, layout, end_aux)
+        else:
+            sub_a = sub.take(local)
+            st_a = st.take(local)
+            y_start = y0[local]
+            h_a = h0[local]
+            y_new = y1[local]
+            y_raw_a = y_raw[local]
+            stages_a = stages_k[:, local]
+            if isinstance(end_aux, _Aux):  # the last DOP853 stage was evaluated at the end state
+                dy_new, aux = stages_k[END_STAGE][local], end_aux.take(local)
+            else:  # the Newton projection's last evaluation, where it covers every case
+                dy_new, aux = _rhs(sub_a, st_a, y_new, layout, None if end_aux is None else end_aux.take(local))
         q = aux.evaluation.q
         length, angle = q[:, 0, 0], q[:, 0, 1]
         finite = np.isfinite(y_new).all(-1) & np.isfinite(aux.evaluation.forces).all(-1)
@@ -783,11 +832,12 @@ def follow_cases(
         keep = np.flatnonzero(~outside)
         if keep.size == 0:
             continue
-        cases, sub_a, st_a = cases[keep], sub_a.take(keep), st_a.take(keep)
-        y_start, h_a, y_new = y_start[keep], h_a[keep], y_new[keep]
-        y_raw_a, stages_a = y_raw_a[keep], stages_a[:, keep]
-        aux = aux.take(keep)
-        dy_new = dy_new[keep]
+        if keep.size < cases.size:
+            cases, sub_a, st_a = cases[keep], sub_a.take(keep), st_a.take(keep)
+            y_start, h_a, y_new = y_start[keep], h_a[keep], y_new[keep]
+            y_raw_a, stages_a = y_raw_a[keep], stages_a[:, keep]
+            aux = aux.take(keep)
+            dy_new = dy_new[keep]
         indicators = _indicators(sub_a, st_a, y_new, aux, layout)
         before = previous[cases]
         change = np.sign(before) * np.sign(indicators) < 0
@@ -796,7 +846,7 @@ def follow_cases(
         crossings = _locate_crossings(
             sub_a, st_a, change, before, indicators, y_start, y_raw_a, y_new, h_a, stages_a, layout, options
         )
-        sigma, located_y = crossings.sigma, crossings.located_y
+        sigma = crossings.sigma
         located_count[cases] += crossings.located
 
         cutting = change & (stop_table[stage_index[cases]] | break_columns[None, :])
@@ -816,7 +866,7 @@ def follow_cases(
         cut_rows = np.flatnonzero(is_cut)
         y_new = y_new.copy()
         if cut_rows.size:
-            y_new[cut_rows] = located_y[cut_rows, cut_column[cut_rows]]
+            y_new[cut_rows] = crossings.located_y(cut_rows, cut_column[cut_rows])
             closing = cut_rows[break_columns[cut_column[cut_rows]]]
             if closing.size:
                 gap = np.asarray(INDICATOR_GAP)[cut_column[closing]]
@@ -856,6 +906,7 @@ def follow_cases(
             brk = np.flatnonzero(break_columns[column_cut])
             ind_cut[brk, column_cut[brk]] = indicators[cut_rows[brk], column_cut[brk]]
             indicators[cut_rows] = ind_cut
+            aux = aux.take(np.arange(cases.size))  # writable copies (fields may be read-only views)
             aux.put(cut_rows, ax_cut)
         y[cases] = y_new
         derivative[cases] = dy_new
