@@ -30,6 +30,7 @@ from ncstab.paths.events import (
     CYCLE_COLUMN,
     INDICATOR_GAP,
     TARGET_COLUMN,
+    STIFFNESS_COLUMNS,
     TURNING_COLUMN,
     indicator_values,
     locate_sign_changes,
@@ -455,16 +456,22 @@ def _locate_crossings(
             b, s_ = batch.take(pick), stage.take(pick)
             yy = evaluate_dense(y_start[pick], coefficients[:, slot_of_row[pick]], lengths / h[pick])
             columns = pair_column[index]
+            turning = bool((columns == TURNING_COLUMN).any())  # the only column needing the tangent
+            stiffness_columns = bool((columns < STIFFNESS_COLUMNS).any())
             if b.has_total_form:
                 yy, _, evaluation = _project_finite(b, s_, yy, np.zeros(pick.size), layout, options)
-            else:
+            elif turning or stiffness_columns or not isinstance(b, CaseBatch):
                 evaluation = b.evaluate(yy[:, layout.v], yy[:, layout.internal], s_.secondary_state)
+            else:  # gaps, overlap, cycle end and target need no forces nor K
+                evaluation = b.evaluate(
+                    yy[:, layout.v], yy[:, layout.internal], s_.secondary_state, geometry_only=True
+                )
             lam = yy[:, layout.lam]
-            if (columns == TURNING_COLUMN).any():  # only the turning point needs the tangent
+            if turning:
                 _, _, dlam, _ = path_tangent(evaluation.du_dv, evaluation.dF_dv, s_, lam)
             else:
                 dlam = np.full(pick.size, np.nan)
-            values = indicator_values(evaluation, s_, lam, dlam)
+            values = indicator_values(evaluation, s_, lam, dlam, stiffness_columns)
             return values[np.arange(pick.size), columns], yy
 
         root, lo, hi, _, state = locate_sign_changes(

@@ -219,7 +219,9 @@ class CaseBatch:
         alpha0 = self.system.parameters["alpha0"]
         return np.cos(alpha0), np.sin(alpha0)
 
-    def _evaluate_fused(self, u: np.ndarray, internal: np.ndarray, secondary_state: np.ndarray | None) -> Evaluation:
+    def _evaluate_fused(
+        self, u: np.ndarray, internal: np.ndarray, secondary_state: np.ndarray | None, geometry_only: bool = False
+    ) -> Evaluation:
         """:meth:`evaluate` through the fused kernel (the same quantities as the
         general assembly, to rounding).
 
@@ -241,7 +243,10 @@ class CaseBatch:
         rate_form = not self.law.has_total_form
         rows = _KERNEL_ROWS[: 10 if rate_form else 8]
         kernels = self._kernels
-        if len(kernels) == 1:
+        if geometry_only:
+            packed[_N:_GAPS.start] = np.nan
+            packed[_GRAD] = np.nan
+        elif len(kernels) == 1:
             for row, value in zip(rows, kernels[0](length, alpha, cos_a, sin_a, t_in, *parameters)):
                 packed[row] = value
         else:
@@ -253,7 +258,7 @@ class CaseBatch:
         packed[_GAPS.start] -= 1
         np.multiply(horizontal, 2, out=packed[_GAPS.start + 1])
         packed[_GAPS.start + 1] -= 1
-        if self.activate_secondary:
+        if self.activate_secondary and not geometry_only:
             state = self.initial_secondary_state(u) if secondary_state is None else secondary_state
             kappa = np.asarray(self.kappa)
             for bit, dof, distance in ((1, 0, vertical), (2, 1, horizontal)):
@@ -279,16 +284,25 @@ class CaseBatch:
             packed[_GRAD].T.reshape(size, 1, 2) if rate_form else None,
         )
 
-    def evaluate(self, u: np.ndarray, internal: np.ndarray, secondary_state: np.ndarray | None = None) -> Evaluation:
+    def evaluate(
+        self,
+        u: np.ndarray,
+        internal: np.ndarray,
+        secondary_state: np.ndarray | None = None,
+        geometry_only: bool = False,
+    ) -> Evaluation:
         """Forces (seed Eq. 4) and tangent operator (Eq. 30-34) at a batch of states.
 
         The state coordinates are the displacements.  ``secondary_state`` says
         which secondary springs act (bits; default: those compressed at ``u``):
         within a step the set is frozen, so the field is smooth; the engine
-        switches it where a gap crossing is located.
+        switches it where a gap crossing is located.  ``geometry_only``: the
+        caller needs q, the gaps and the overlap only; forces, K and the
+        internal gradient may then be NaN (they are where the fused kernel
+        applies).
         """
         if self._kernels is not None:
-            return self._evaluate_fused(u, internal, secondary_state)
+            return self._evaluate_fused(u, internal, secondary_state, geometry_only)
         if self.law.definition.no_tension:
             # Event-driven: each case follows its frozen branch (closed / open) within a step.
             is_open = self._normal_open(u, secondary_state)
