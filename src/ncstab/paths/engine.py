@@ -307,8 +307,10 @@ class _Recorder:
                 grown[:, : self.capacity] = array
                 self.arrays[key] = grown
             self.capacity = capacity
+        flat = case * self.capacity + position  # one 1-D index for every field
         for key, value in values.items():
-            self.arrays[key][case, position] = value
+            array = self.arrays[key]
+            array.reshape((self.size * self.capacity,) + array.shape[2:])[flat] = value
         self.count[case] += 1
 
     @property
