@@ -6,9 +6,10 @@ held; alpha0 = pi/4, secondary contacts ignored, max_step = 0.05) for one law
 over a side x side grid of gamma in [0.1, 2] x F2* in [0, 0.8]; by default
 256 x 256 = 65,536 cases, followed in-process with :func:`ncstab.follow`.
 
-Run:  python benchmarks/bench_stability_diagram.py [--side 256] [--law mcnamara] [--dataset] [--tracemalloc]
+Run:  python benchmarks/bench_stability_diagram.py [--side 256] [--law mcnamara] [--repeat 1] [--dataset] [--tracemalloc]
 
-Prints the time of ``follow`` (and, with ``--dataset``, of ``to_dataset``), the
+Prints the time of ``follow`` (the median of ``--repeat`` runs), and with
+``--dataset`` that of ``to_dataset``, the
 cases per second, the peak memory (peak resident set size of the process, and
 with ``--tracemalloc`` the tracemalloc peak of Python allocations during
 ``follow``, which slows it several times: measure time without it), the statuses, and
@@ -22,6 +23,7 @@ import argparse
 import collections
 import math
 import resource
+import statistics
 import sys
 import time
 import tracemalloc
@@ -48,6 +50,7 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--side", type=int, default=256, help="grid points per parameter (cases = side^2)")
     parser.add_argument("--law", default="mcnamara")
+    parser.add_argument("--repeat", type=int, default=1, help="runs of follow; the median is reported")
     parser.add_argument("--dataset", action="store_true", help="also time Path.to_dataset()")
     parser.add_argument("--tracemalloc", action="store_true",
                         help="also trace the peak of Python allocations (slows follow several times; a separate run)")
@@ -60,19 +63,23 @@ def main(argv: list[str] | None = None) -> None:
     rss_before = peak_rss_mib()
     if args.tracemalloc:
         tracemalloc.start()
-    start = time.perf_counter()
-    path = ncstab.follow(
-        SystemSpec(secondary_contacts="ignore"),
-        [args.law],
-        PROGRAMME,
-        {"gamma": gamma.tolist(), "F2_lateral": lateral.tolist(), "alpha0": math.pi / 4},
-        PathOptions(max_step=0.05),
-    )
-    elapsed = time.perf_counter() - start
+    times = []
+    for _ in range(args.repeat):
+        start = time.perf_counter()
+        path = ncstab.follow(
+            SystemSpec(secondary_contacts="ignore"),
+            [args.law],
+            PROGRAMME,
+            {"gamma": gamma.tolist(), "F2_lateral": lateral.tolist(), "alpha0": math.pi / 4},
+            PathOptions(max_step=0.05),
+        )
+        times.append(time.perf_counter() - start)
+    elapsed = statistics.median(times)
     traced_peak = tracemalloc.get_traced_memory()[1] if args.tracemalloc else float("nan")
     if args.tracemalloc:
         tracemalloc.stop()
-    print(f"follow: {elapsed:.1f} s, {n_cases / elapsed:,.0f} cases/s")
+    runs = f" (median of {len(times)}: {', '.join(f'{t:.1f}' for t in times)} s)" if len(times) > 1 else ""
+    print(f"follow: {elapsed:.1f} s, {n_cases / elapsed:,.0f} cases/s{runs}")
     print(f"peak RSS: {peak_rss_mib():,.0f} MiB (before follow: {rss_before:,.0f} MiB); "
           f"tracemalloc peak during follow: "
           + (f"{traced_peak / 2**20:,.0f} MiB" if args.tracemalloc else "not traced (--tracemalloc)"))

@@ -7,9 +7,10 @@ within 1e-8 of a tight reference (solve_ivp DOP853, rtol 1e-13), checked on a
 random subset of cases.  The baseline integrates the seed's Eq. (38) written
 by hand with scalar math, which is the fastest plain-Python form of the loop.
 
-Run:  python benchmarks/bench_sweep_cundall_strack.py [--cases-per-side 64]
+Run:  python benchmarks/bench_sweep_cundall_strack.py [--cases-per-side 64] [--repeat 3]
 
-Prints the times, the ratios, and the accuracy of each.  The engine also
+Prints the times (the median of ``--repeat`` runs of each method, taken in
+turn in the same process), the ratios of those medians, and the accuracy of each.  The engine also
 locates every event (the secondary-contact gaps reach zero in many cases);
 a second baseline does that job too, with solve_ivp event functions.  This is a benchmark,
 not a test: nothing here asserts a time.
@@ -19,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import statistics
 import time
 
 import numpy as np
@@ -95,6 +97,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cases-per-side", type=int, default=64)
     parser.add_argument("--check", type=int, default=128, help="cases checked against the tight reference")
+    parser.add_argument("--repeat", type=int, default=1, help="runs of each method; the median is reported")
     args = parser.parse_args()
     side = args.cases_per_side
     gamma = np.linspace(0.1, 2.0, side)
@@ -106,17 +109,19 @@ def main() -> None:
                   [{"hold": {"F2": 0.0}, "drive": {"D1": 0.01}}], {"gamma": 1.0})  # compile once (sympy)
 
     options = PathOptions(rtol=1e-10, atol=1e-12, max_step=1.0)
-    start = time.perf_counter()
-    engine, path = run_engine(gamma, alpha0, options)
-    engine_time = time.perf_counter() - start
-
     baseline_rtol, baseline_atol = 1e-10, 1e-12
-    start = time.perf_counter()
-    baseline = run_baseline(gg, aa, baseline_rtol, baseline_atol)
-    baseline_time = time.perf_counter() - start
-    start = time.perf_counter()
-    run_baseline(gg, aa, baseline_rtol, baseline_atol, events=True)
-    baseline_events_time = time.perf_counter() - start
+    times: dict[str, list[float]] = {"engine": [], "baseline": [], "baseline_events": []}
+    for _ in range(args.repeat):  # interleaved, so a slow spell of the machine hits every method
+        start = time.perf_counter()
+        engine, path = run_engine(gamma, alpha0, options)
+        times["engine"].append(time.perf_counter() - start)
+        start = time.perf_counter()
+        baseline = run_baseline(gg, aa, baseline_rtol, baseline_atol)
+        times["baseline"].append(time.perf_counter() - start)
+        start = time.perf_counter()
+        run_baseline(gg, aa, baseline_rtol, baseline_atol, events=True)
+        times["baseline_events"].append(time.perf_counter() - start)
+    engine_time, baseline_time, baseline_events_time = (statistics.median(times[k]) for k in times)
 
     rng = np.random.default_rng(0)
     subset = rng.choice(n, size=min(args.check, n), replace=False)
@@ -125,7 +130,7 @@ def main() -> None:
     baseline_error = np.abs(baseline[subset] - reference).max()
     statuses = dict(zip(*np.unique(path.status, return_counts=True)))
 
-    print(f"cases                      {n}")
+    print(f"cases                      {n}   (median of {args.repeat} run(s) of each method)")
     print(f"engine  (batched, events)  {engine_time:8.3f} s   max error {engine_error:.2e}   statuses {statuses}")
     print(f"baseline (solve_ivp loop)  {baseline_time:8.3f} s   max error {baseline_error:.2e}")
     print(f"baseline with the same events located  {baseline_events_time:8.3f} s")

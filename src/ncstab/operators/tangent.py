@@ -14,14 +14,22 @@ the seed's Eq. (38) for Cundall--Strack and Eq. (51) for McNamara et al.
 
 from __future__ import annotations
 
+import functools
+from typing import Callable
+
 import numpy as np
+import sympy as sp
+
+from ncstab.laws.definition import ALPHA, L, N, T, LawDefinition
 
 from ncstab.laws.registry import Law
 from ncstab.symbolic.compile import compile_law
 from ncstab.systems.protocol import DiscreteSystem, conjugate_forces
 
 __all__ = [
+    "STATE_KERNEL_OUTPUTS",
     "check_shared_parameters",
+    "compile_state_kernel",
     "conjugate_tangent",
     "contact_forces",
     "generalized_forces",
@@ -187,3 +195,81 @@ def tangent_operator_at_forces(
     q = system.contact_variables(u)
     normal, tangential = system.contact_forces(q, np.asarray(forces, dtype=float))
     return tangent_operator_at_contact_state(system, law, q, normal, tangential)
+
+
+#: Outputs of a state kernel (:func:`compile_state_kernel`), in order; the
+#: last two only for a law whose T is an internal variable.
+STATE_KERNEL_OUTPUTS = ("N", "T", "F1", "F2", "K11", "K12", "K21", "K22", "dT_dD1", "dT_dD2")
+
+
+@functools.lru_cache(maxsize=None)
+def compile_state_kernel(system_type: type, definition: LawDefinition) -> Callable[..., list]:
+    """One fused numpy function for forces, K and the T rate of a one-contact system.
+
+    The assembly of :func:`tangent_operator_at_contact_state` (K = w [J^T D J
+    + Q_l H_l + Q_alpha H_alpha], F = w J^T Q) and of the internal-variable
+    rate dT = C_Tl dl + C_Ta dalpha, done once in sympy on the system's
+    symbolic kinematics (``system_type.symbolic_kinematics``) and the law's
+    derived rate matrix, then lambdified with common-subexpression
+    elimination.  The constant zeros and ones of a law's rate matrix vanish
+    from the generated code, and no (B, 2, 2) temporaries are built: this is
+    the engine's inner loop.  sympy runs here only (cached per system type and
+    law definition), never per evaluation.
+
+    Returns
+    -------
+    callable
+        ``f(l, alpha, cos_alpha, sin_alpha, T_internal, *law_parameters)`` ->
+        list of the :data:`STATE_KERNEL_OUTPUTS` (arrays or Python scalars;
+        ``T_internal`` is ignored by a law with a total form).
+    """
+    from ncstab.symbolic.derivation import derive_law
+
+    derivation = derive_law(definition)
+    length, alpha, c, s, t_in = sp.symbols("l_ alpha_ c_ s_ T_internal_", real=True)
+    jacobian, hessians = system_type.symbolic_kinematics(length, c, s)
+    weight = sp.Integer(2)
+    normal = derivation.normal
+    tangential = derivation.tangential if derivation.tangential is not None else T
+    contact = {L: length, ALPHA: alpha}
+    normal = sp.sympify(normal).subs(contact)
+    tangential = sp.sympify(tangential).subs(contact).subs(T, t_in)
+    rate = [
+        sp.sympify(e).subs(contact).subs({N: normal, T: tangential}) for e in derivation.rate_matrix
+    ]
+    conjugate_tangent_matrix = sp.Matrix(
+        [[-rate[0], -rate[1]], [tangential + length * rate[2], length * rate[3]]]
+    )
+    conjugate = [-normal, length * tangential]
+    stiffness = weight * (
+        jacobian.T * conjugate_tangent_matrix * jacobian + conjugate[0] * hessians[0] + conjugate[1] * hessians[1]
+    )
+    forces = weight * jacobian.T * sp.Matrix(conjugate)
+    outputs = [normal, tangential, forces[0], forces[1], *list(stiffness)]
+    if derivation.tangential is None:
+        gradient = sp.Matrix([[rate[2], rate[3]]]) * jacobian
+        outputs += list(gradient)
+    outputs = [sp.sympify(e).replace(sp.DiracDelta, lambda *args: sp.Integer(0)) for e in outputs]
+    arguments = [length, alpha, c, s, t_in, *definition.parameter_symbols]
+    return sp.lambdify(arguments, outputs, modules="numpy", cse=True, printer=_KernelPrinter)
+
+
+def _kernel_printer_class() -> type:
+    from sympy.printing.numpy import NumPyPrinter
+
+    class KernelPrinter(NumPyPrinter):
+        """numpy printer writing x**-k (small k) as 1/x products: numpy's power
+        with a float exponent costs several multiplications."""
+
+        def _print_Pow(self, expr, rational=False):  # noqa: N802 (sympy's name)
+            base, exponent = expr.as_base_exp()
+            if exponent.is_Integer and -3 <= int(exponent) <= -1:
+                factor = self._print(base) if base.is_Atom else f"({self._print(base)})"
+                product = "*".join([factor] * -int(exponent))
+                return f"(1/({product}))"
+            return super()._print_Pow(expr, rational=rational)
+
+    return KernelPrinter
+
+
+_KernelPrinter = _kernel_printer_class()

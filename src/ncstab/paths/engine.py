@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from dataclasses import fields as dataclass_fields
 from typing import Callable
 
 import numpy as np
@@ -29,10 +30,12 @@ from ncstab.paths.events import (
     CYCLE_COLUMN,
     INDICATOR_GAP,
     TARGET_COLUMN,
+    STIFFNESS_COLUMNS,
+    TURNING_COLUMN,
     indicator_values,
     locate_sign_changes,
 )
-from ncstab.paths.integrator import ERROR_EXPONENT, dense_output, dop853_step, evaluate_dense
+from ncstab.paths.integrator import END_STAGE, ERROR_EXPONENT, dense_output, dop853_step, evaluate_dense
 from ncstab.paths.model import CaseBatch, Evaluation
 from ncstab.paths.options import PathOptions
 from ncstab.paths.programme import CURRENT, EVENTS, CycleStage, LoadingProgramme, Stage
@@ -76,32 +79,87 @@ class _Layout:
         self.size = n + 2 + n_internal
 
 
-def _rhs(batch: CaseBatch, stage: StageArrays, y: np.ndarray, layout: _Layout) -> tuple[np.ndarray, _Aux]:
-    """dy/ds: oriented unit tangent, internal-variable rates, work rate."""
+def _rhs(
+    batch: CaseBatch, stage: StageArrays, y: np.ndarray, layout: _Layout, evaluation: Evaluation | None = None
+) -> tuple[np.ndarray, _Aux]:
+    """dy/ds: oriented unit tangent, internal-variable rates, work rate.
+
+    ``evaluation`` is ``batch.evaluate`` at ``y`` where already known.
+    """
     v, lam, internal = y[:, layout.v], y[:, layout.lam], y[:, layout.internal]
-    evaluation = batch.evaluate(v, internal, stage.secondary_state)
+    if evaluation is None:
+        evaluation = batch.evaluate(v, internal, stage.secondary_state)
     dv, du, dlam, _ = path_tangent(evaluation.du_dv, evaluation.dF_dv, stage, lam)
     dinternal = batch.internal_rate(evaluation, dv, stage.secondary_state)
-    dwork = 0.5 * np.sum(evaluation.forces * du, axis=-1)
-    dy = np.concatenate([dv, dlam[:, None], dinternal, dwork[:, None]], axis=-1)
+    dy = np.empty(y.shape)
+    dy[:, layout.v] = dv
+    dy[:, layout.lam] = dlam
+    dy[:, layout.internal] = dinternal
+    dy[:, layout.work] = 0.5 * np.sum(evaluation.forces * du, axis=-1)
     return dy, _Aux(evaluation, dv, du, dlam)
+
+
+def _gather_evaluations(pieces: list[tuple[np.ndarray, Evaluation]], size: int) -> Evaluation:
+    """One Evaluation of ``size`` rows from pieces (row indices, Evaluation of those rows)."""
+    if len(pieces) == 1 and pieces[0][0].size == size:
+        return pieces[0][1]
+    rows = np.concatenate([index for index, _ in pieces])
+    order = np.argsort(rows, kind="stable")
+    parts = [piece for _, piece in pieces]
+    values = []
+    for f in dataclass_fields(Evaluation):
+        arrays = [getattr(part, f.name) for part in parts]
+        values.append(None if arrays[0] is None else np.concatenate(arrays)[order])
+    return Evaluation(*values)
+
+
+def _newton_correction_2(
+    matrix_u: np.ndarray, matrix_f: np.ndarray, force_controlled: np.ndarray, dg: np.ndarray, residual: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Minimum-norm correction for n = 2 in closed form: z = (M M^T + g' g'^T)^-1 r,
+    dv = -M^T z; returns (dv, z, singular), singular marking the rows whose
+    finite normal matrix could not be inverted (for a least-squares fallback)."""
+    fc0, fc1 = force_controlled[:, 0], force_controlled[:, 1]
+    m00 = np.where(fc0, matrix_f[:, 0, 0], matrix_u[:, 0, 0])
+    m01 = np.where(fc0, matrix_f[:, 0, 1], matrix_u[:, 0, 1])
+    m10 = np.where(fc1, matrix_f[:, 1, 0], matrix_u[:, 1, 0])
+    m11 = np.where(fc1, matrix_f[:, 1, 1], matrix_u[:, 1, 1])
+    g0, g1 = dg[:, 0], dg[:, 1]
+    a00 = (m00 * m00 + m01 * m01) + g0 * g0
+    a01 = (m00 * m10 + m01 * m11) + g0 * g1
+    a11 = (m10 * m10 + m11 * m11) + g1 * g1
+    r0, r1 = residual[:, 0], residual[:, 1]
+    with np.errstate(all="ignore"):
+        det = a00 * a11 - a01 * a01
+        z = np.empty(residual.shape)
+        z[:, 0] = (a11 * r0 - a01 * r1) / det
+        z[:, 1] = (a00 * r1 - a01 * r0) / det
+    z0, z1 = z[:, 0], z[:, 1]
+    dv = np.empty(residual.shape)
+    dv[:, 0] = -(m00 * z0 + m10 * z1)
+    dv[:, 1] = -(m01 * z0 + m11 * z1)
+    singular = np.isfinite(a00) & np.isfinite(a01) & np.isfinite(a11) & ~np.isfinite(z).all(axis=-1)
+    return dv, z, singular
 
 
 def _project(
     batch: CaseBatch, stage: StageArrays, y: np.ndarray, layout: _Layout, options: PathOptions
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, Evaluation]:
     """Newton projection of (v, lambda) onto equilibrium + control constraints.
 
     Solves P u(v) + Q F(v) = g(lambda) by minimum-norm Gauss--Newton corrections
     (the system has one more unknown than equations).  Returns the projected
-    states and a mask of the cases that converged to ``options.newton_tol``.
+    states, a mask of the cases that converged to ``options.newton_tol`` and
+    ``batch.evaluate`` at the projected states (the last residual check
+    evaluates there: callers need not evaluate again).
     """
     y = y.copy()
-    converged = np.zeros(y.shape[0], dtype=bool)
-    todo = np.arange(y.shape[0])
+    size_all = y.shape[0]
+    converged = np.zeros(size_all, dtype=bool)
+    todo = np.arange(size_all)
+    pieces: list[tuple[np.ndarray, Evaluation]] = []
+    sub, st = batch, stage
     for _ in range(options.newton_max_iter + 1):
-        sub = batch.take(todo) if todo.size < y.shape[0] else batch
-        st = stage.take(todo) if todo.size < y.shape[0] else stage
         v, lam = y[todo, layout.v], y[todo, layout.lam]
         with np.errstate(all="ignore"):
             evaluation = sub.evaluate(v, y[todo, layout.internal], st.secondary_state)
@@ -111,24 +169,45 @@ def _project(
         converged[todo[ok]] = True
         keep = ~ok & np.isfinite(size)
         if not keep.any():
+            pieces.append((todo, evaluation))
+            todo = todo[:0]
             break
-        todo, residual = todo[keep], residual[keep]
-        st = st.take(np.flatnonzero(keep))
-        _, dg = st.control_path(lam[keep])
-        matrix = control_matrix(evaluation.du_dv[keep], evaluation.dF_dv[keep], st.force_controlled)
-        normal_matrix = matrix @ np.swapaxes(matrix, -1, -2) + dg[:, :, None] * dg[:, None, :]
-        with np.errstate(all="ignore"):
-            try:
-                z = np.linalg.solve(normal_matrix, residual[..., None])[..., 0]
-            except np.linalg.LinAlgError:
-                z = np.stack([np.linalg.lstsq(a, r, rcond=None)[0] for a, r in zip(normal_matrix, residual)])
-        dv = -np.einsum("bji,bj->bi", matrix, z)
+        if not keep.all():
+            pieces.append((todo[~keep], evaluation.take(~keep)))
+        kept = np.flatnonzero(keep)
+        todo, residual = todo[kept], residual[kept]
+        st = st.take(kept)
+        sub = sub.take(kept)
+        _, dg = st.control_path(lam[kept])
+        du_dv, df_dv = evaluation.du_dv[kept], evaluation.dF_dv[kept]
+        if dg.shape[-1] == 2:
+            dv, z, singular = _newton_correction_2(du_dv, df_dv, st.force_controlled, dg, residual)
+        else:
+            singular = np.ones(kept.size, dtype=bool)
+            dv = z = np.empty(residual.shape)
+        if singular.any():  # rank-deficient normal matrix (or n != 2): least squares per case
+            rows = np.flatnonzero(singular)
+            matrix = control_matrix(du_dv[rows], df_dv[rows], st.force_controlled[rows])
+            normal_matrix = matrix @ np.swapaxes(matrix, -1, -2) + dg[rows, :, None] * dg[rows, None, :]
+            with np.errstate(all="ignore"):
+                z[rows] = np.stack(
+                    [np.linalg.lstsq(a, r, rcond=None)[0] for a, r in zip(normal_matrix, residual[rows])]
+                )
+            dv[rows] = -np.einsum("bji,bj->bi", matrix, z[rows])
         y[todo, layout.v] += dv
         y[todo, layout.lam] += np.sum(dg * z, axis=-1)
         # Keep the work W = int F . du / 2 consistent with the corrected path.
-        du = (evaluation.du_dv[keep] @ dv[:, :, None])[:, :, 0]
-        y[todo, layout.work] += 0.5 * np.sum(evaluation.forces[keep] * du, axis=-1)
-    return y, converged
+        if dv.shape[-1] == 2:
+            du = np.empty(dv.shape)
+            du[:, 0] = du_dv[:, 0, 0] * dv[:, 0] + du_dv[:, 0, 1] * dv[:, 1]
+            du[:, 1] = du_dv[:, 1, 0] * dv[:, 0] + du_dv[:, 1, 1] * dv[:, 1]
+        else:
+            du = (du_dv @ dv[:, :, None])[:, :, 0]
+        y[todo, layout.work] += 0.5 * np.sum(evaluation.forces[kept] * du, axis=-1)
+    if todo.size:  # out of iterations: evaluate at the last corrected states
+        with np.errstate(all="ignore"):
+            pieces.append((todo, sub.evaluate(y[todo, layout.v], y[todo, layout.internal], st.secondary_state)))
+    return y, converged, _gather_evaluations(pieces, size_all)
 
 
 def _advance(
@@ -138,70 +217,113 @@ def _advance(
     h: np.ndarray,
     layout: _Layout,
     options: PathOptions,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    f0: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, "_Aux | Evaluation | None"]:
     """One step of length h per case: DOP853, then Newton projection (total forms).
 
-    Returns the new states, the error norms (inf where Newton failed), the
-    unprojected DOP853 end states and the stage derivatives (for dense output).
+    ``f0`` is dy/ds at ``y0`` where already known (first same as last: the
+    derivative at the end of the previous accepted step).  Returns the new
+    states, the error norms (inf where Newton failed), the unprojected DOP853
+    end states, the stage derivatives (for dense output) and what is already
+    known at the new states: without projection the auxiliary quantities
+    (an ``_Aux``, from the last stage, which is evaluated there); with it the
+    Newton projection's last evaluation (an ``Evaluation``, or ``None`` where
+    some states were not projected).
     """
+    last: list[_Aux] = []
 
     def rhs(y: np.ndarray) -> np.ndarray:
-        return _rhs(batch, stage, y, layout)[0]
+        dy, aux = _rhs(batch, stage, y, layout)
+        last[:] = [aux]
+        return dy
 
-    y_raw, err, stages = dop853_step(rhs, y0, h, options.rtol, options.atol)
+    y_raw, err, stages = dop853_step(rhs, y0, h, options.rtol, options.atol, f0=f0)
     y1 = y_raw.copy()
     if batch.has_total_form and y1.shape[0]:
-        y1, err = _project_finite(batch, stage, y1, err, layout, options)
-    return y1, err, y_raw, stages
+        y1, err, evaluation = _project_finite(batch, stage, y1, err, layout, options)
+        return y1, err, y_raw, stages, evaluation
+    return y1, err, y_raw, stages, last[0]
 
 
 def _project_finite(
     batch: CaseBatch, stage: StageArrays, y: np.ndarray, err: np.ndarray, layout: _Layout, options: PathOptions
-) -> tuple[np.ndarray, np.ndarray]:
-    """Newton-project the finite states; err = inf where projection fails."""
+) -> tuple[np.ndarray, np.ndarray, Evaluation | None]:
+    """Newton-project the finite states; err = inf where projection fails.
+
+    Also returns the evaluation at the projected states when every state
+    was projected (else ``None``).
+    """
     y, err = y.copy(), err.copy()
     index = np.flatnonzero(np.isfinite(err))
+    evaluation = None
     if index.size:
-        projected, converged = _project(batch.take(index), stage.take(index), y[index], layout, options)
+        if index.size == y.shape[0]:
+            projected, converged, evaluation = _project(batch, stage, y, layout, options)
+        else:
+            projected, converged, _ = _project(batch.take(index), stage.take(index), y[index], layout, options)
         y[index] = projected
         err[index[~converged]] = np.inf
-    return y, err
+    return y, err, evaluation
 
 
 def _indicators(batch: CaseBatch, stage: StageArrays, y: np.ndarray, aux: _Aux, layout: _Layout) -> np.ndarray:
     return indicator_values(aux.evaluation, stage, y[:, layout.lam], aux.dlam)
 
 
-@dataclass
 class _Recorder:
-    """Accumulates stored states; assembled into padded (B, steps, ...) arrays."""
+    """Stores states straight into padded ``(B, capacity, ...)`` arrays.
 
-    size: int
-    chunks: list[dict[str, np.ndarray]] = field(default_factory=list)
+    Each case's states go to its next free position; the capacity grows
+    geometrically, so a sweep costs one scatter per stored state and field
+    (no per-step chunks to concatenate and sort at the end).
+    """
+
+    def __init__(self, size: int) -> None:
+        self.size = size
+        self.count = np.zeros(size, dtype=int)
+        self.arrays: dict[str, np.ndarray] | None = None
+        self.capacity = 0
+
+    @staticmethod
+    def _blank(shape: tuple[int, ...], dtype: np.dtype) -> np.ndarray:
+        return np.full(shape, -1 if np.dtype(dtype).kind == "i" else np.nan, dtype=dtype)
 
     def add(self, case: np.ndarray, **values: np.ndarray) -> None:
-        # Empty chunks are kept: they give every field its shape and dtype even
-        # when no case stores a state (all fail at the first stage start).
-        self.chunks.append({"case": case, **values})
+        values = {key: np.asarray(value) for key, value in values.items()}
+        position = self.count[case]
+        needed = int(position.max()) + 1 if case.size else 0
+        if self.arrays is None:
+            # Created even when no case stores a state (all fail at the first
+            # stage start): every field still gets its shape and dtype.
+            self.capacity = max(needed, 16)
+            self.arrays = {
+                key: self._blank((self.size, self.capacity) + value.shape[1:], value.dtype)
+                for key, value in values.items()
+            }
+        elif needed > self.capacity:
+            capacity = max(needed, 2 * self.capacity)
+            for key, array in self.arrays.items():
+                grown = self._blank((self.size, capacity) + array.shape[2:], array.dtype)
+                grown[:, : self.capacity] = array
+                self.arrays[key] = grown
+            self.capacity = capacity
+        flat = case * self.capacity + position  # one 1-D index for every field
+        for key, value in values.items():
+            array = self.arrays[key]
+            array.reshape((self.size * self.capacity,) + array.shape[2:])[flat] = value
+        self.count[case] += 1
+
+    @property
+    def started(self) -> bool:
+        return self.arrays is not None
 
     def assemble(self) -> tuple[dict[str, np.ndarray], np.ndarray]:
-        cases = np.concatenate([c["case"] for c in self.chunks])
-        order = np.argsort(cases, kind="stable")
-        counts = np.bincount(cases, minlength=self.size)
-        length = int(counts.max()) if counts.size else 0
-        starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-        sorted_cases = cases[order]
-        position = np.arange(cases.size) - starts[sorted_cases]
-        out: dict[str, np.ndarray] = {}
-        for key in self.chunks[0]:
-            if key == "case":
-                continue
-            values = np.concatenate([c[key] for c in self.chunks])[order]
-            fill = -1 if values.dtype.kind == "i" else np.nan
-            array = np.full((self.size, length) + values.shape[1:], fill, dtype=values.dtype)
-            array[sorted_cases, position] = values
-            out[key] = array
-        return out, counts
+        assert self.arrays is not None
+        length = int(self.count.max()) if self.size else 0
+        # Views, not copies: the capacity left over is less than the length
+        # (geometric growth), and copying every field cost more than the rest
+        # of the bookkeeping together.
+        return {key: array[:, :length] for key, array in self.arrays.items()}, self.count
 
 
 @dataclass
@@ -268,15 +390,26 @@ class _Crossings:
     """Sign changes of the indicators over one accepted step, located.
 
     ``sigma``, ``lower``, ``upper``: (rows, columns) root and bracket in step
-    length (inf / NaN where no change); ``located_y``: (rows, columns, m)
-    states at the roots; ``located``: (rows,) number of located roots.
+    length (inf / NaN where no change); ``located``: (rows,) number of located
+    roots.  The states at the roots are stored for the located pairs only:
+    ``slot`` (rows, columns) indexes ``states`` (pairs, m), -1 where none.
     """
 
     sigma: np.ndarray
     lower: np.ndarray
     upper: np.ndarray
-    located_y: np.ndarray
+    slot: np.ndarray
+    states: np.ndarray
     located: np.ndarray
+
+    def located_y(self, rows: np.ndarray, columns: np.ndarray) -> np.ndarray:
+        """States at the roots of (rows, columns) pairs, ``(len(rows), m)`` (NaN where none)."""
+        slot = self.slot[rows, columns]
+        out = self.states[np.maximum(slot, 0)] if self.states.shape[0] else np.full(
+            (slot.size, self.states.shape[1]), np.nan
+        )
+        out[slot < 0] = np.nan
+        return out
 
 
 def _locate_crossings(
@@ -302,45 +435,62 @@ def _locate_crossings(
     sigma = np.full((rows_n, n_cols), np.inf)
     lower = np.full((rows_n, n_cols), np.nan)
     upper = np.full((rows_n, n_cols), np.nan)
-    located_y = np.full((rows_n, n_cols, layout.size), np.nan)
-    located = np.zeros(rows_n, dtype=int)
     exact_target = change[:, TARGET_COLUMN] & (after[:, TARGET_COLUMN] == 0)
-    needs = np.flatnonzero(change.any(axis=1))
-    if needs.size:
+    searched = change.copy()
+    searched[:, TARGET_COLUMN] &= ~exact_target
+    # Every (row, column) pair with a sign change is one root search; all
+    # pairs of the step advance together (each pair's iterates depend on that
+    # pair only, so this equals one search per column, with fewer passes).
+    pair_row, pair_column = np.nonzero(searched)
+    located = np.bincount(pair_row, minlength=rows_n)
+    if pair_row.size:
         # DOP853 interpolant over the step (3 extra stages, only where needed).
+        needs = np.flatnonzero(searched.any(axis=1))
         b_n, s_n = batch.take(needs), stage.take(needs)
         coefficients = dense_output(
             lambda yy: _rhs(b_n, s_n, yy, layout)[0], y_start[needs], y_raw[needs], h[needs], stages_k[:, needs]
         )
         slot_of_row = np.full(rows_n, -1)
         slot_of_row[needs] = np.arange(needs.size)
-    for column in np.flatnonzero(change.any(axis=0)):
-        rows = np.flatnonzero(change[:, column] & ~(exact_target & (column == TARGET_COLUMN)))
-        if rows.size == 0:
-            continue
-        slots = slot_of_row[rows]
 
-        def evaluate(index: np.ndarray, lengths: np.ndarray, rows: np.ndarray = rows,
-                     slots: np.ndarray = slots, column: int = column):
-            pick = rows[index]
+        def evaluate(index: np.ndarray, lengths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            pick = pair_row[index]
             b, s_ = batch.take(pick), stage.take(pick)
-            yy = evaluate_dense(y_start[pick], coefficients[:, slots[index]], lengths / h[pick])
+            yy = evaluate_dense(y_start[pick], coefficients[:, slot_of_row[pick]], lengths / h[pick])
+            columns = pair_column[index]
+            turning = bool((columns == TURNING_COLUMN).any())  # the only column needing the tangent
+            stiffness_columns = bool((columns < STIFFNESS_COLUMNS).any())
             if b.has_total_form:
-                yy, _ = _project_finite(b, s_, yy, np.zeros(pick.size), layout, options)
-            _, ax = _rhs(b, s_, yy, layout)
-            return _indicators(b, s_, yy, ax, layout)[:, column], yy
+                yy, _, evaluation = _project_finite(b, s_, yy, np.zeros(pick.size), layout, options)
+            elif turning or stiffness_columns or not isinstance(b, CaseBatch):
+                evaluation = b.evaluate(yy[:, layout.v], yy[:, layout.internal], s_.secondary_state)
+            else:  # gaps, overlap, cycle end and target need no forces nor K
+                evaluation = b.evaluate(
+                    yy[:, layout.v], yy[:, layout.internal], s_.secondary_state, geometry_only=True
+                )
+            lam = yy[:, layout.lam]
+            if turning:
+                _, _, dlam, _ = path_tangent(evaluation.du_dv, evaluation.dF_dv, s_, lam)
+            else:
+                dlam = np.full(pick.size, np.nan)
+            values = indicator_values(evaluation, s_, lam, dlam, stiffness_columns)
+            return values[np.arange(pick.size), columns], yy
 
         root, lo, hi, _, state = locate_sign_changes(
-            evaluate, h[rows], before[rows, column], after[rows, column], options.event_tol
+            evaluate, h[pair_row], before[pair_row, pair_column], after[pair_row, pair_column], options.event_tol
         )
-        sigma[rows, column], lower[rows, column], upper[rows, column] = root, lo, hi
-        located_y[rows, column] = state
-        located[rows] += 1
+        sigma[pair_row, pair_column], lower[pair_row, pair_column], upper[pair_row, pair_column] = root, lo, hi
+        pair_states = state
+    else:
+        pair_states = np.empty((0, layout.size))
+    slot = np.full((rows_n, n_cols), -1)
+    slot[pair_row, pair_column] = np.arange(pair_row.size)
     if exact_target.any():
         rows = np.flatnonzero(exact_target)
         sigma[rows, TARGET_COLUMN] = lower[rows, TARGET_COLUMN] = upper[rows, TARGET_COLUMN] = h[rows]
-        located_y[rows, TARGET_COLUMN] = y_end[rows]
-    return _Crossings(sigma, lower, upper, located_y, located)
+        slot[rows, TARGET_COLUMN] = pair_states.shape[0] + np.arange(rows.size)
+        pair_states = np.concatenate([pair_states, y_end[rows]])
+    return _Crossings(sigma, lower, upper, slot, pair_states, located)
 
 
 def _store_first_events(
@@ -370,7 +520,7 @@ def _store_first_events(
         if rows.size == 0:
             continue
         col = np.asarray(columns)[best[rows]]
-        state = crossings.located_y[rows, col]
+        state = crossings.located_y(rows, col)
         _, ax = _rhs(batch.take(rows), stage.take(rows), state, layout)
         table = events[name]
         target = cases[rows]
@@ -446,6 +596,8 @@ def follow_cases(
     dofs, forces = batch.system.dof_names, batch.system.force_names
     y = np.zeros((size, layout.size))
     y[:, layout.v] = batch.initial_state()
+    # dy/ds at each case's current state (first same as last for the next step).
+    derivative = np.full((size, layout.size), np.nan)
     stage_index = np.zeros(size, dtype=int)
     status = np.full(size, RUNNING, dtype=object)
     message = np.full(size, "", dtype=object)
@@ -608,11 +760,12 @@ def follow_cases(
                 which = index[bad & (reasons == reason)]
                 fail(which, "singular_control" if "singular" in reason else "bad_stage_start", reason)
             go = ~bad & ~zero_length
-            if go.any() or not recorder.chunks:
+            if go.any() or not recorder.started:
                 gi = index[go]
                 sub_go = batch.take(gi)
                 st_go = stages.take(gi)
                 dy, aux = _rhs(sub_go, st_go, y[gi], layout)
+                derivative[gi] = dy
                 previous[gi] = _indicators(sub_go, st_go, y[gi], aux, layout)
                 record(gi, y[gi], aux)
                 cycle_start_work[gi] = y[gi, layout.work]
@@ -630,7 +783,7 @@ def follow_cases(
         st = stages.take(active)
         y0 = y[active]
         h0 = np.minimum(step_size[active], options.max_step)
-        y1, err, y_raw, stages_k = _advance(sub, st, y0, h0, layout, options)
+        y1, err, y_raw, stages_k, end_aux = _advance(sub, st, y0, h0, layout, options, derivative[active])
         accept = err <= 1.0
         with np.errstate(divide="ignore", invalid="ignore"):
             factor = np.where(err == 0, 10.0, np.clip(0.9 * err**ERROR_EXPONENT, 0.2, 10.0))
@@ -649,14 +802,24 @@ def follow_cases(
         if local.size == 0:
             continue
         cases = active[local]
-        sub_a = sub.take(local)
-        st_a = st.take(local)
-        y_start = y0[local]
-        h_a = h0[local]
-        y_new = y1[local]
-        y_raw_a = y_raw[local]
-        stages_a = stages_k[:, local]
-        _, aux = _rhs(sub_a, st_a, y_new, layout)
+        if local.size == active.size:  # every step accepted: no copies (st is a copy of stages already)
+            sub_a, st_a, y_start, h_a, y_new, y_raw_a, stages_a = sub, st, y0, h0, y1, y_raw, stages_k
+            if isinstance(end_aux, _Aux):
+                dy_new, aux = stages_k[END_STAGE].copy(), end_aux
+            else:
+                dy_new, aux = _rhs(sub_a, st_a, y_new, layout, end_aux)
+        else:
+            sub_a = sub.take(local)
+            st_a = st.take(local)
+            y_start = y0[local]
+            h_a = h0[local]
+            y_new = y1[local]
+            y_raw_a = y_raw[local]
+            stages_a = stages_k[:, local]
+            if isinstance(end_aux, _Aux):  # the last DOP853 stage was evaluated at the end state
+                dy_new, aux = stages_k[END_STAGE][local], end_aux.take(local)
+            else:  # the Newton projection's last evaluation, where it covers every case
+                dy_new, aux = _rhs(sub_a, st_a, y_new, layout, None if end_aux is None else end_aux.take(local))
         q = aux.evaluation.q
         length, angle = q[:, 0, 0], q[:, 0, 1]
         finite = np.isfinite(y_new).all(-1) & np.isfinite(aux.evaluation.forces).all(-1)
@@ -678,10 +841,12 @@ def follow_cases(
         keep = np.flatnonzero(~outside)
         if keep.size == 0:
             continue
-        cases, sub_a, st_a = cases[keep], sub_a.take(keep), st_a.take(keep)
-        y_start, h_a, y_new = y_start[keep], h_a[keep], y_new[keep]
-        y_raw_a, stages_a = y_raw_a[keep], stages_a[:, keep]
-        aux = aux.take(keep)
+        if keep.size < cases.size:
+            cases, sub_a, st_a = cases[keep], sub_a.take(keep), st_a.take(keep)
+            y_start, h_a, y_new = y_start[keep], h_a[keep], y_new[keep]
+            y_raw_a, stages_a = y_raw_a[keep], stages_a[:, keep]
+            aux = aux.take(keep)
+            dy_new = dy_new[keep]
         indicators = _indicators(sub_a, st_a, y_new, aux, layout)
         before = previous[cases]
         change = np.sign(before) * np.sign(indicators) < 0
@@ -690,7 +855,7 @@ def follow_cases(
         crossings = _locate_crossings(
             sub_a, st_a, change, before, indicators, y_start, y_raw_a, y_new, h_a, stages_a, layout, options
         )
-        sigma, located_y = crossings.sigma, crossings.located_y
+        sigma = crossings.sigma
         located_count[cases] += crossings.located
 
         cutting = change & (stop_table[stage_index[cases]] | break_columns[None, :])
@@ -710,7 +875,7 @@ def follow_cases(
         cut_rows = np.flatnonzero(is_cut)
         y_new = y_new.copy()
         if cut_rows.size:
-            y_new[cut_rows] = located_y[cut_rows, cut_column[cut_rows]]
+            y_new[cut_rows] = crossings.located_y(cut_rows, cut_column[cut_rows])
             closing = cut_rows[break_columns[cut_column[cut_rows]]]
             if closing.size:
                 gap = np.asarray(INDICATOR_GAP)[cut_column[closing]]
@@ -742,15 +907,18 @@ def follow_cases(
                 st_a.cycles_done[cyc] += 1
                 stages.cycles_done[where] += 1
             b, s_ = sub_a.take(cut_rows), st_a.take(cut_rows)
-            _, ax_cut = _rhs(b, s_, y_new[cut_rows], layout)
+            dy_cut, ax_cut = _rhs(b, s_, y_new[cut_rows], layout)
+            dy_new[cut_rows] = dy_cut
             ind_cut = _indicators(b, s_, y_new[cut_rows], ax_cut, layout)
             # Keep the post-crossing sign of a break column (secondary contact)
             # so the same crossing is not detected twice.
             brk = np.flatnonzero(break_columns[column_cut])
             ind_cut[brk, column_cut[brk]] = indicators[cut_rows[brk], column_cut[brk]]
             indicators[cut_rows] = ind_cut
+            aux = aux.take(np.arange(cases.size))  # writable copies (fields may be read-only views)
             aux.put(cut_rows, ax_cut)
         y[cases] = y_new
+        derivative[cases] = dy_new
         arclength[cases] += reach
         accepted_count[cases] += 1
         previous[cases] = indicators

@@ -32,7 +32,7 @@ from ncstab.paths.model import Evaluation
 from ncstab.paths.programme import EVENTS
 from ncstab.paths.tangent_field import StageArrays, control_matrix
 
-__all__ = ["CYCLE_COLUMN", "INDICATOR_EVENTS", "INDICATOR_GAP", "TARGET_COLUMN", "indicator_values", "locate_sign_changes"]
+__all__ = ["CYCLE_COLUMN", "INDICATOR_EVENTS", "INDICATOR_GAP", "STIFFNESS_COLUMNS", "TARGET_COLUMN", "TURNING_COLUMN", "indicator_values", "locate_sign_changes"]
 
 #: Event name of every indicator column (two columns for the two secondary gaps).
 INDICATOR_EVENTS = (
@@ -58,6 +58,10 @@ SIGN_NOISE = 1e-13
 TINY = 1e-300
 #: Column of the end-of-cycle indicator (cycle stages: lambda - 2 pi (k + 1)).
 CYCLE_COLUMN = INDICATOR_EVENTS.index("cycle_end")
+#: The first columns, built on K (limit point, Hill, controllability, flutter).
+STIFFNESS_COLUMNS = 4
+#: Column of the turning-point indicator (dlambda/ds: the only one needing the path tangent).
+TURNING_COLUMN = INDICATOR_EVENTS.index("turning_point")
 #: Column of the stage-target indicator.
 TARGET_COLUMN = len(INDICATOR_EVENTS) - 1
 assert set(INDICATOR_EVENTS) - {"normal_contact", "cycle_end", "stage_target"} == set(EVENTS)
@@ -68,6 +72,7 @@ def indicator_values(
     stage: StageArrays,
     lam: np.ndarray,
     dlam: np.ndarray,
+    stiffness_columns: bool = True,
 ) -> np.ndarray:
     """All indicators at a batch of states, ``(B, len(INDICATOR_EVENTS))``.
 
@@ -79,12 +84,12 @@ def indicator_values(
         The cases' stage arrays.
     lam, dlam
         Driven parameter and its oriented rate along the path, ``(B,)``.
+    stiffness_columns
+        ``False``: leave the four indicators built on K (limit point, Hill,
+        controllability, flutter) NaN, for a caller that needs none of them
+        (event location of a gap or a target); the other columns are the same.
     """
     stiffness, gaps = evaluation.stiffness, evaluation.gaps
-    control = control_matrix(evaluation.du_dv, evaluation.dF_dv, stage.force_controlled)
-    with np.errstate(invalid="ignore"):
-        scale = np.nanmax(np.abs(np.concatenate([stiffness, control], axis=-1)), axis=(-2, -1))
-    scale = np.where(np.isfinite(scale) & (scale > 0), scale, 1.0)
     # A contact indicator exactly at zero takes the sign of the branch the case
     # is on, so leaving the kink into the other side is a detected crossing
     # (a no_tension contact touching at rest is closed: overlap "+0").
@@ -100,12 +105,22 @@ def indicator_values(
         # rest) has a flutter discriminant of +-1e-31 that must not be an event.
         return np.where(np.abs(value) <= SIGN_NOISE * size, 0.0, value)
 
-    return np.column_stack(
-        [
+    if stiffness_columns:
+        control = control_matrix(evaluation.du_dv, evaluation.dF_dv, stage.force_controlled)
+        with np.errstate(invalid="ignore"):
+            scale = np.nanmax(np.abs(np.concatenate([stiffness, control], axis=-1)), axis=(-2, -1))
+        scale = np.where(np.isfinite(scale) & (scale > 0), scale, 1.0)
+        stiffness_values = [
             significant(det_K(stiffness), scale**2),
             significant(hill_eigenvalue(stiffness), scale),
             significant(det_K(control), scale**2),
             significant(flutter_discriminant(stiffness), scale**2),
+        ]
+    else:
+        stiffness_values = [np.full(lam.shape, np.nan)] * 4
+    return np.column_stack(
+        [
+            *stiffness_values,
             gaps[:, 0],
             gaps[:, 1],
             dlam,
@@ -137,7 +152,8 @@ def locate_sign_changes(
     phi0, phi1
         Indicator at sigma = 0 and sigma = h.
     tol
-        Stop when the bracket is narrower than ``tol`` (or phi is exactly 0).
+        Stop when the bracket is narrower than ``tol`` (or phi is exactly 0, or
+        +-TINY, the indicators' signed zero).
 
     Returns
     -------
@@ -175,7 +191,10 @@ def locate_sign_changes(
         f_c[active] = values
         a_side = active[np.sign(values) == np.sign(f_lower[active])]
         b_side = active[np.sign(values) == np.sign(f_upper[active])]
-        exact = active[(values == 0) | ~np.isfinite(values)]
+        # TINY is the indicators' exact zero (signed by the branch): a root hit
+        # exactly.  Taking it as one end of the bracket instead would stall
+        # regula falsi there and leave ~15 bisections to close the bracket.
+        exact = active[(np.abs(values) <= TINY) | ~np.isfinite(values)]
         # Illinois: halve the retained end's value when the same side moves twice.
         halve_upper = a_side[side[a_side] == 1]
         f_upper[halve_upper] *= 0.5

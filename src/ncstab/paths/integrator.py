@@ -12,12 +12,14 @@ from typing import Callable
 import numpy as np
 from scipy.integrate._ivp import dop853_coefficients as dop
 
-__all__ = ["combine_stages", "dop853_step", "dense_output", "evaluate_dense", "error_norm", "ERROR_EXPONENT"]
+__all__ = ["END_STAGE", "combine_stages", "dop853_step", "dense_output", "evaluate_dense", "error_norm", "ERROR_EXPONENT"]
 
 _A = dop.A[: dop.N_STAGES, : dop.N_STAGES]
 _B = dop.B
 _E3 = dop.E3
 _E5 = dop.E5
+#: Index of the stage evaluated at the end of the step (first same as last).
+END_STAGE = dop.N_STAGES
 #: Step-size controller exponent -1/(order + 1) with error order 7 (as scipy).
 ERROR_EXPONENT = -1.0 / 8.0
 
@@ -30,6 +32,10 @@ def combine_stages(coefficients: np.ndarray, stages: np.ndarray) -> np.ndarray:
     so that the same case followed in another batch (a chunk of a large sweep,
     ``ncstab.studies.run_study_chunked``) would differ in the last bits.  Here
     every case gets the same operations in the same order, whatever the batch.
+    Terms after the first whose weight is exactly zero are skipped (a third
+    of the DOP853 tableau): they would add +-0 (a non-finite stage they would
+    turn into NaN reaches the result through the non-zero weights of the
+    stages computed from it anyway).
 
     Parameters
     ----------
@@ -48,7 +54,8 @@ def combine_stages(coefficients: np.ndarray, stages: np.ndarray) -> np.ndarray:
     total = np.multiply(coefficients[0], stages[0])
     term = np.empty_like(total)
     for weight, stage in zip(coefficients[1:], stages[1:]):
-        total += np.multiply(weight, stage, out=term)
+        if weight != 0:
+            total += np.multiply(weight, stage, out=term)
     return total
 
 

@@ -7,13 +7,14 @@ a subset taken with :meth:`CaseBatch.take`) on whole arrays.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, fields
 
 import numpy as np
 
 from ncstab.laws.catalogue import no_tension_branches
 from ncstab.laws.registry import Law
-from ncstab.operators.tangent import tangent_operator_at_contact_state
+from ncstab.operators.tangent import compile_state_kernel, tangent_operator_at_contact_state
 from ncstab.symbolic.compile import CompiledLaw, compile_law
 from ncstab.systems.protocol import DiscreteSystem
 
@@ -52,6 +53,9 @@ class Evaluation:
         Normal overlap delta of a ``no_tension`` law's contact, ``(B,)``
         (NaN for other laws): its sign change is where the contact opens or
         closes.
+    internal_gradient
+        d(internal)/du, ``(B, n_internal, n)``, where the fused kernel gave it
+        (rate-form laws), else ``None``.
     """
 
     q: np.ndarray
@@ -64,13 +68,27 @@ class Evaluation:
     dF_dv: np.ndarray
     gaps: np.ndarray
     normal_overlap: np.ndarray
+    internal_gradient: np.ndarray | None = None
 
     def take(self, index: np.ndarray) -> "Evaluation":
-        return Evaluation(*(getattr(self, f.name)[index] for f in fields(self)))
+        return Evaluation(*(_take_or_none(getattr(self, f.name), index) for f in fields(self)))
 
     def put(self, index: np.ndarray, other: "Evaluation") -> None:
         for f in fields(self):
-            getattr(self, f.name)[index] = getattr(other, f.name)
+            mine = getattr(self, f.name)
+            if mine is not None:
+                mine[index] = getattr(other, f.name)
+
+
+def _take_or_none(value: np.ndarray | None, index: np.ndarray) -> np.ndarray | None:
+    return None if value is None else value[index]
+
+
+#: Rows of the packed array of a fused evaluation (see ``CaseBatch._evaluate_fused``).
+_L, _ALPHA, _N, _T, _F, _K, _GAPS, _GRAD = 0, 1, 2, 3, slice(4, 6), slice(6, 10), slice(10, 12), slice(12, 14)
+_PACKED = 14
+#: Packed row of each output of the kernel (N, T, F, K, then d(internal)/du).
+_KERNEL_ROWS = (2, 3, 4, 5, 6, 7, 8, 9, 12, 13)
 
 
 def _take_parameters(parameters: dict[str, np.ndarray], index: np.ndarray) -> dict[str, np.ndarray]:
@@ -185,14 +203,106 @@ class CaseBatch:
             state += NORMAL_OPEN * (self._overlap(self.system.contact_variables(u)) < 0)
         return state
 
-    def evaluate(self, u: np.ndarray, internal: np.ndarray, secondary_state: np.ndarray | None = None) -> Evaluation:
+    @functools.cached_property
+    def _kernels(self) -> tuple | None:
+        """Fused state kernels (one per smooth branch) where the system has
+        symbolic kinematics and one contact family, else ``None``."""
+        if not hasattr(type(self.system), "symbolic_kinematics") or self.system.n_contacts != 1:
+            return None
+        definitions = (
+            no_tension_branches(self.law.definition) if self.law.definition.no_tension else (self.law.definition,)
+        )
+        return tuple(compile_state_kernel(type(self.system), d) for d in definitions)
+
+    @functools.cached_property
+    def _alpha0_trig(self) -> tuple[np.ndarray, np.ndarray]:
+        alpha0 = self.system.parameters["alpha0"]
+        return np.cos(alpha0), np.sin(alpha0)
+
+    def _evaluate_fused(
+        self, u: np.ndarray, internal: np.ndarray, secondary_state: np.ndarray | None, geometry_only: bool = False
+    ) -> Evaluation:
+        """:meth:`evaluate` through the fused kernel (the same quantities as the
+        general assembly, to rounding).
+
+        Everything is computed on contiguous ``(B,)`` rows of one packed
+        ``(14, B)`` array; the fields of the :class:`Evaluation` are transposed
+        views of it, so every entry ``K[:, i, j]`` the engine reads is contiguous.
+        """
+        size = u.shape[0]
+        cos0, sin0 = self._alpha0_trig
+        vertical = cos0 - u[:, 0]
+        horizontal = sin0 - u[:, 1]
+        packed = np.empty((_PACKED, size))
+        length, alpha = packed[_L], packed[_ALPHA]
+        np.sqrt(vertical * vertical + horizontal * horizontal, out=length)
+        np.arctan2(horizontal, vertical, out=alpha)
+        cos_a, sin_a = vertical / length, horizontal / length
+        t_in = internal[:, 0] if internal.shape[-1] else 0.0
+        parameters = self.law.parameter_values()
+        rate_form = not self.law.has_total_form
+        rows = _KERNEL_ROWS[: 10 if rate_form else 8]
+        kernels = self._kernels
+        if geometry_only:
+            packed[_N:_GAPS.start] = np.nan
+            packed[_GRAD] = np.nan
+        elif len(kernels) == 1:
+            for row, value in zip(rows, kernels[0](length, alpha, cos_a, sin_a, t_in, *parameters)):
+                packed[row] = value
+        else:
+            is_open = self._normal_open(u, secondary_state)
+            branches = [kernel(length, alpha, cos_a, sin_a, t_in, *parameters) for kernel in kernels]
+            for k, row in enumerate(rows):
+                np.copyto(packed[row], np.where(is_open, branches[1][k], branches[0][k]))
+        np.multiply(vertical, 2, out=packed[_GAPS.start])
+        packed[_GAPS.start] -= 1
+        np.multiply(horizontal, 2, out=packed[_GAPS.start + 1])
+        packed[_GAPS.start + 1] -= 1
+        if self.activate_secondary and not geometry_only:
+            state = self.initial_secondary_state(u) if secondary_state is None else secondary_state
+            kappa = np.asarray(self.kappa)
+            for bit, dof, distance in ((1, 0, vertical), (2, 1, horizontal)):
+                active = (state & bit) > 0
+                packed[_F.start + dof] += kappa * np.where(active, 1.0 - 2.0 * distance, 0.0)
+                packed[_K.start + 3 * dof] += 2.0 * kappa * active
+        if self.law.definition.no_tension:
+            overlap = self.compiled.normal_overlap(self.law, length, alpha)
+        else:
+            overlap = np.full(size, np.nan)
+        stiffness = packed[_K].T.reshape(size, 2, 2)
+        return Evaluation(
+            packed[_L:_ALPHA + 1].T.reshape(size, 1, 2),
+            packed[_N:_N + 1].T,
+            packed[_T:_T + 1].T,
+            u,
+            packed[_F].T,
+            stiffness,
+            np.broadcast_to(np.eye(2), (size, 2, 2)),
+            stiffness,
+            packed[_GAPS].T,
+            overlap,
+            packed[_GRAD].T.reshape(size, 1, 2) if rate_form else None,
+        )
+
+    def evaluate(
+        self,
+        u: np.ndarray,
+        internal: np.ndarray,
+        secondary_state: np.ndarray | None = None,
+        geometry_only: bool = False,
+    ) -> Evaluation:
         """Forces (seed Eq. 4) and tangent operator (Eq. 30-34) at a batch of states.
 
         The state coordinates are the displacements.  ``secondary_state`` says
         which secondary springs act (bits; default: those compressed at ``u``):
         within a step the set is frozen, so the field is smooth; the engine
-        switches it where a gap crossing is located.
+        switches it where a gap crossing is located.  ``geometry_only``: the
+        caller needs q, the gaps and the overlap only; forces, K and the
+        internal gradient may then be NaN (they are where the fused kernel
+        applies).
         """
+        if self._kernels is not None:
+            return self._evaluate_fused(u, internal, secondary_state, geometry_only)
         if self.law.definition.no_tension:
             # Event-driven: each case follows its frozen branch (closed / open) within a step.
             is_open = self._normal_open(u, secondary_state)
@@ -231,6 +341,11 @@ class CaseBatch:
         """d(internal)/ds along du/ds: dT = C_Tl dl + C_Ta dalpha (seed Eq. 13), (B, n_c)."""
         if self.n_internal == 0:
             return np.zeros(du.shape[:-1] + (0,))
+        if evaluation.internal_gradient is not None:
+            gradient = evaluation.internal_gradient
+            return (gradient[:, :, 0] * du[:, None, 0] + gradient[:, :, 1] * du[:, None, 1]) if du.shape[-1] == 2 else (
+                np.einsum("bkn,bn->bk", gradient, du)
+            )
         q = evaluation.q
         jacobian = self.system.contact_jacobian(q)  # (B, n_c, 2, n)
         dq = (jacobian @ du[:, None, :, None])[..., 0]

@@ -124,6 +124,8 @@ class StageArrays:
 
     def control_path(self, lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """g(lambda) and g'(lambda), each ``(B, n)``."""
+        if not self.is_cycle.any():  # elementwise either way: the same bits per case
+            return self.offset + self.slope * lam[:, None], self.slope
         angle = self.theta0 + self.turn_direction * lam
         unit = np.stack([np.cos(angle), np.sin(angle)], axis=-1) if self.center.shape[-1] == 2 else None
         linear_g = self.offset + self.slope * lam[:, None]
@@ -164,6 +166,8 @@ def path_tangent(
         not one-dimensional (adj(M) g' = 0 and det M = 0).
     """
     _, dg = stage.control_path(lam)
+    if dg.shape[-1] == 2:
+        return _path_tangent_2(du_dv, df_dv, stage, dg, oriented)
     matrix = control_matrix(du_dv, df_dv, stage.force_controlled)
     det_m = det_K(matrix)
     dv = (adjugate(matrix) @ dg[:, :, None])[:, :, 0]
@@ -176,3 +180,36 @@ def path_tangent(
     if oriented:
         scale = scale * stage.orientation
     return dv * scale[:, None], du * scale[:, None], dlam * scale, det_m
+
+
+def _path_tangent_2(
+    du_dv: np.ndarray, df_dv: np.ndarray, stage: StageArrays, dg: np.ndarray, oriented: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`path_tangent` for n = 2 in closed form: the adjugate, det M and the
+    products with du/dv and dF/dv written out entry by entry (no (B, 2, 2)
+    temporaries, no matmul)."""
+    fc0, fc1 = stage.force_controlled[:, 0], stage.force_controlled[:, 1]
+    m00 = np.where(fc0, df_dv[:, 0, 0], du_dv[:, 0, 0])
+    m01 = np.where(fc0, df_dv[:, 0, 1], du_dv[:, 0, 1])
+    m10 = np.where(fc1, df_dv[:, 1, 0], du_dv[:, 1, 0])
+    m11 = np.where(fc1, df_dv[:, 1, 1], du_dv[:, 1, 1])
+    det_m = m00 * m11 - m01 * m10
+    g0, g1 = dg[:, 0], dg[:, 1]
+    dv = np.empty(dg.shape)
+    dv[:, 0] = m11 * g0 - m01 * g1
+    dv[:, 1] = m00 * g1 - m10 * g0
+    dv0, dv1 = dv[:, 0], dv[:, 1]
+    du = np.empty(dg.shape)
+    du[:, 0] = du_dv[:, 0, 0] * dv0 + du_dv[:, 0, 1] * dv1
+    du[:, 1] = du_dv[:, 1, 0] * dv0 + du_dv[:, 1, 1] * dv1
+    df0 = df_dv[:, 0, 0] * dv0 + df_dv[:, 0, 1] * dv1
+    df1 = df_dv[:, 1, 0] * dv0 + df_dv[:, 1, 1] * dv1
+    du0, du1 = du[:, 0], du[:, 1]
+    norm = np.sqrt((du0 * du0 + du1 * du1) + (df0 * df0 + df1 * df1) + det_m * det_m)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        scale = np.where(norm > 0, 1.0 / norm, np.nan)
+    if oriented:
+        scale = scale * stage.orientation
+    dv *= scale[:, None]
+    du *= scale[:, None]
+    return dv, du, det_m * scale, det_m

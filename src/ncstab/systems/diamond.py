@@ -106,6 +106,28 @@ class DiamondChain:
         h_alpha = (outer_cs + np.swapaxes(outer_cs, -1, -2)) / length[..., None, None] ** 2
         return np.stack([h_l, h_alpha], axis=-3)[..., None, :, :, :]
 
+    @staticmethod
+    def symbolic_kinematics(length, cos_alpha, sin_alpha):
+        """J and H of :meth:`contact_jacobian` / :meth:`contact_hessian` as sympy matrices.
+
+        In terms of symbols for l, cos(alpha) and sin(alpha), for the one
+        contact family; used once, when a fused evaluation kernel is compiled
+        (:func:`ncstab.operators.tangent.compile_state_kernel`).
+
+        Returns
+        -------
+        (J, (H_l, H_alpha))
+            2x2 sympy matrices.
+        """
+        import sympy as sp
+
+        c, s, l = cos_alpha, sin_alpha, length
+        jacobian = sp.Matrix([[-c, -s], [s / l, -c / l]])
+        c_vec, s_vec = sp.Matrix([c, s]), sp.Matrix([s, -c])
+        h_l = s_vec * s_vec.T / l
+        h_alpha = (c_vec * s_vec.T + s_vec * c_vec.T) / l**2
+        return jacobian, (h_l, h_alpha)
+
     # --- statics ----------------------------------------------------------------------
     def generalized_forces(self, q: np.ndarray, normal: np.ndarray, tangential: np.ndarray) -> np.ndarray:
         """F = sum_c w_c J_c^T Q_c, seed Eq. (4)/(12); shape ``(..., 2)``.

@@ -1,0 +1,147 @@
+"""The engine's fast paths give the quantities of the general code (issue 6, "Scale").
+
+- The fused state kernel (:func:`ncstab.operators.tangent.compile_state_kernel`,
+  used by :meth:`ncstab.paths.model.CaseBatch.evaluate`) against the general
+  assembly (:func:`tangent_operator_at_contact_state`, the system's
+  ``generalized_forces`` and the law's rate matrix), for every law of the
+  catalogue, both smooth branches of a no_tension law and the secondary springs.
+- A case's evaluation, path tangent and Newton projection are bitwise the same
+  whatever batch it is in (no reduction across cases).
+- The padded recorder keeps each case's states in order.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ncstab.laws.catalogue import no_tension_branches
+from ncstab.laws.registry import law_definition, make_law
+from ncstab.operators.tangent import compile_state_kernel, tangent_operator_at_contact_state
+from ncstab.paths import PathOptions, SystemSpec
+from ncstab.paths.api import case_batch
+from ncstab.paths.engine import _Layout, _project, _Recorder, _rhs
+from ncstab.paths.model import NORMAL_OPEN
+from ncstab.paths.tangent_field import StageArrays
+from ncstab.symbolic.compile import compile_law
+from ncstab.systems.diamond import DiamondChain
+
+LAWS = ["cundall_strack", "weakly_hypoelastic", "mcnamara", "turco"]
+SIZE = 64
+
+
+def _states(size: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    u = rng.uniform(-0.08, 0.08, size=(size, 2))
+    tangential = rng.uniform(-0.1, 0.1, size=size)
+    gamma = rng.uniform(0.1, 3.0, size=size)
+    return u, tangential, gamma
+
+
+def _definitions(name: str):
+    definition = law_definition(name)
+    return no_tension_branches(definition) if definition.no_tension else (definition,)
+
+
+@pytest.mark.parametrize("name", LAWS + ["mcnamara+no_tension", "cundall_strack+no_tension"])
+def test_state_kernel_matches_the_general_assembly(name):
+    u, t_internal, gamma = _states(SIZE)
+    alpha0 = np.full(SIZE, 0.7)
+    system = DiamondChain(alpha0=alpha0)
+    q = system.contact_variables(u)
+    length, alpha = q[:, 0, 0], q[:, 0, 1]
+    for definition in _definitions(name):
+        parameters = {"gamma": gamma}
+        if "alpha0" in definition.parameter_names:
+            parameters["alpha0"] = alpha0
+        law = make_law(definition, **parameters)
+        compiled = compile_law(definition)
+        normal = compiled.normal_force(law, length, alpha)
+        tangential = compiled.tangential_force(law, length, alpha) if definition.has_total_form else t_internal
+        stiffness = tangent_operator_at_contact_state(system, law, q, normal[:, None], tangential[:, None])
+        forces = system.generalized_forces(q, normal[:, None], tangential[:, None])
+        kernel = compile_state_kernel(DiamondChain, definition)
+        out = [np.broadcast_to(np.asarray(v, dtype=float), (SIZE,)) for v in kernel(
+            length, alpha, np.cos(alpha), np.sin(alpha), t_internal, *law.parameter_values()
+        )]
+        np.testing.assert_allclose(out[0], normal, rtol=0, atol=1e-15)
+        np.testing.assert_allclose(out[1], tangential, rtol=0, atol=1e-15)
+        np.testing.assert_allclose(np.stack(out[2:4], -1), forces, rtol=0, atol=1e-14)
+        np.testing.assert_allclose(np.stack(out[4:8], -1).reshape(SIZE, 2, 2), stiffness, rtol=0, atol=1e-13)
+        if not definition.has_total_form:
+            # dT = C_Tl dl + C_Ta dalpha along any du (seed Eq. 13).
+            rate = compiled.rate_matrix(law, length, alpha, normal, tangential)
+            jacobian = system.contact_jacobian(q)[:, 0]
+            expected = rate[:, 1, 0, None] * jacobian[:, 0] + rate[:, 1, 1, None] * jacobian[:, 1]
+            np.testing.assert_allclose(np.stack(out[8:10], -1), expected, rtol=0, atol=1e-14)
+
+
+@pytest.mark.parametrize("name", ["mcnamara", "cundall_strack", "turco+no_tension"])
+@pytest.mark.parametrize("secondary", ["ignore", "activate"])
+def test_fused_evaluation_matches_the_general_evaluation(name, secondary, monkeypatch):
+    u, t_internal, gamma = _states(SIZE, seed=1)
+    values = {"gamma": gamma, "alpha0": np.full(SIZE, math.pi / 4)}
+    batch = case_batch(name, SystemSpec(secondary_contacts=secondary), values, SIZE)
+    internal = t_internal[:, None] if batch.n_internal else np.zeros((SIZE, 0))
+    state = batch.initial_secondary_state(u)
+    if name.endswith("no_tension"):
+        state = state | (NORMAL_OPEN * (np.arange(SIZE) % 2))  # both branches in one batch
+    fused = batch.evaluate(u, internal, state)
+    monkeypatch.setattr(type(batch), "_kernels", property(lambda self: None))
+    general = batch.evaluate(u, internal, state)
+    for field in ("q", "normal", "tangential", "displacements", "forces", "stiffness", "gaps", "normal_overlap"):
+        np.testing.assert_allclose(getattr(fused, field), getattr(general, field), rtol=0, atol=1e-13, err_msg=field)
+    if batch.n_internal:
+        direction = np.random.default_rng(2).normal(size=(SIZE, 2))
+        np.testing.assert_allclose(
+            batch.internal_rate(fused, direction, state),
+            batch.internal_rate(general, direction, state),
+            rtol=0, atol=1e-13,
+        )
+
+
+@pytest.mark.parametrize("name", ["mcnamara", "cundall_strack"])
+def test_rhs_and_projection_of_a_case_do_not_depend_on_its_batch(name):
+    size = 257
+    u, t_internal, gamma = _states(size, seed=3)
+    values = {"gamma": gamma, "alpha0": np.full(size, math.pi / 4)}
+    batch = case_batch(name, SystemSpec(secondary_contacts="ignore"), values, size)
+    layout = _Layout(2, batch.n_internal)
+    y = np.zeros((size, layout.size))
+    y[:, layout.v] = u
+    y[:, layout.lam] = u[:, 0]
+    if batch.n_internal:
+        y[:, layout.internal] = t_internal[:, None]
+    stage = StageArrays.empty(size, 2)
+    stage.force_controlled[:, 1] = True
+    stage.slope[:, 0] = 1.0
+    stage.offset[:, 1] = np.linspace(-0.05, 0.05, size)
+    dy, _ = _rhs(batch, stage, y, layout)
+    options = PathOptions()
+    projected = _project(batch, stage, y, layout, options)[0] if batch.has_total_form else None
+    for index in (np.array([5]), np.arange(3, 200, 7), np.arange(size)[::-1]):
+        sub, st = batch.take(index), stage.take(index)
+        np.testing.assert_array_equal(_rhs(sub, st, y[index], layout)[0], dy[index])
+        if projected is not None:
+            np.testing.assert_array_equal(_project(sub, st, y[index], layout, options)[0], projected[index])
+
+
+def test_recorder_keeps_each_case_in_order_across_growth():
+    recorder = _Recorder(3)
+    expected: dict[int, list[float]] = {0: [], 1: [], 2: []}
+    for step in range(40):  # beyond the initial capacity of 16
+        cases = np.array([0, 2]) if step % 3 else np.array([1, 0, 2])
+        values = step + cases / 10
+        for case, value in zip(cases, values):
+            expected[int(case)].append(value)
+        recorder.add(cases, s=values, stage=np.full(cases.size, step), K=np.ones((cases.size, 2, 2)) * values[:, None, None])
+    steps, counts = recorder.assemble()
+    assert counts.tolist() == [len(expected[c]) for c in range(3)]
+    assert steps["s"].shape == (3, max(counts))
+    for case in range(3):
+        n = counts[case]
+        assert steps["s"][case, :n].tolist() == expected[case]
+        assert np.isnan(steps["s"][case, n:]).all() and (steps["stage"][case, n:] == -1).all()
+        np.testing.assert_array_equal(steps["K"][case, :n, 1, 0], expected[case])
