@@ -20,6 +20,7 @@ import xarray as xr
 import ncstab
 from ncstab.paths import follow
 from ncstab.paths.variables import VARIABLES
+from ncstab.studies.archive import COMPRESSION
 from ncstab.studies import (
     load_study,
     open_study,
@@ -218,7 +219,7 @@ def test_the_file_is_compressed_and_self_describing(dataset, archive):
         assert nc.getncattr("Conventions") == "CF-1.10"
         for name in ("u", "F", "K", "det_K", "hill", "stage"):
             filters = nc.variables[name].filters()
-            assert filters["zlib"] and filters["complevel"] == 4, name
+            assert filters["zlib"] and filters["shuffle"] and filters["complevel"] == COMPRESSION["complevel"], name
         for name in ("status", "message", "law", "law_class"):
             assert nc.variables[name].dtype is str, name  # NetCDF strings, readable as text
         described = [name for name in VARIABLES if name in nc.variables]

@@ -176,6 +176,15 @@ def test_the_steps_past_a_short_case_read_nan_and_its_stages_minus_one(tmp_path)
     assert np.all(np.isnan(archive["u"].values[padded]))
     assert np.all(archive["stage"].values[padded] == -1)
     assert np.all(archive["stage"].values[~padded] >= 0)
+    import netCDF4
+
+    from ncstab.studies.archive import COMPRESSION
+
+    with netCDF4.Dataset(output) as nc:  # compressed as write_dataset compresses, step unlimited
+        assert nc.dimensions["step"].isunlimited()
+        for name in ("u", "K", "stage", "hill_loss_s"):
+            filters = nc.variables[name].filters()
+            assert filters["zlib"] and filters["shuffle"] and filters["complevel"] == COMPRESSION["complevel"], name
 
 
 def test_a_chunk_of_the_wrong_size_is_refused(tmp_path):

@@ -182,7 +182,7 @@ class ArchiveStream:
         numeric = dtype.kind in "biuf"
         options: dict[str, Any] = {}
         if numeric and dims and math.prod(STEP_CHUNK if d == "step" else sizes[d] for d in dims) >= MIN_COMPRESSED_SIZE:
-            options.update(COMPRESSION, shuffle=True, chunksizes=_chunk_sizes(dims, sizes))
+            options.update(COMPRESSION, chunksizes=_chunk_sizes(dims, sizes))
         if dtype.kind == "f" and not is_index:
             options["fill_value"] = np.nan
         variable = self._file.createVariable(name, dtype if numeric else str, dims, **options)
