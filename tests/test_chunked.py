@@ -226,3 +226,26 @@ def test_a_run_on_an_existing_scheduler_writes_the_in_process_archive(study, ref
         output = tmp_path / "out" / "chunks.nc"
         run_study_chunked(study, output, chunk_cases=CHUNK_CASES, scheduler=cluster.scheduler_address)
     assert_same_archive(output, reference)
+
+
+def test_the_cli_streams_a_study_larger_than_a_chunk_without_flags(
+    study, reference, tmp_path, monkeypatch, capsys
+):
+    """More cases per law than one chunk: streamed (never all in memory), same archive."""
+    import ncstab.studies as studies_package
+
+    monkeypatch.setattr(chunked_module, "DEFAULT_CHUNK_CASES", CHUNK_CASES)  # 12 cases per law > 5
+
+    def in_memory(*args, **kwargs):
+        raise AssertionError("a study larger than a chunk must not be run in memory")
+
+    monkeypatch.setattr(studies_package, "run_study", in_memory)
+    study_file = tmp_path / "study" / "chunks.toml"
+    study_file.parent.mkdir()
+    study_file.write_text(STUDY_TEXT)
+    output = tmp_path / "out" / "chunks.nc"
+    assert main(["run", str(study_file), "-q", "-o", str(output)]) == 0
+    assert "cases: 24" in capsys.readouterr().out
+    for figure in output.parent.glob("*.png"):
+        figure.unlink()
+    assert_same_archive(output, reference)
