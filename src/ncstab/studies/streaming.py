@@ -126,9 +126,13 @@ class ArchiveStream:
 
     # -- creation -------------------------------------------------------------------------
     def _full_dims(self, dims: tuple[str, ...]) -> tuple[str, ...]:
+        """A chunk variable's dimensions in the whole archive: ``case`` becomes the swept parameters."""
         out: list[str] = []
         for name in dims:
-            out.extend(self.grid.sweep) if name == CASE_DIMENSION else out.append(name)
+            if name == CASE_DIMENSION:
+                out.extend(self.grid.sweep)
+            else:
+                out.append(name)
         return tuple(out)
 
     def _create(self, chunk: "xr.Dataset") -> None:
