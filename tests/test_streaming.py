@@ -14,13 +14,16 @@ from __future__ import annotations
 import math
 import tracemalloc
 
+import netCDF4
 import numpy as np
 import pytest
 import xarray as xr
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from ncstab.paths import ParameterGrid
 from ncstab.studies import open_study, parse_study, run_study, run_study_chunked, write_dataset
+from ncstab.studies.archive import COMPRESSION
 from ncstab.studies.chunked import run_chunk
 from ncstab.studies.streaming import ArchiveStream, hyperslabs
 
@@ -176,10 +179,6 @@ def test_the_steps_past_a_short_case_read_nan_and_its_stages_minus_one(tmp_path)
     assert np.all(np.isnan(archive["u"].values[padded]))
     assert np.all(archive["stage"].values[padded] == -1)
     assert np.all(archive["stage"].values[~padded] >= 0)
-    import netCDF4
-
-    from ncstab.studies.archive import COMPRESSION
-
     with netCDF4.Dataset(output) as nc:  # compressed as write_dataset compresses, step unlimited
         assert nc.dimensions["step"].isunlimited()
         for name in ("u", "K", "stage"):
@@ -190,16 +189,13 @@ def test_the_steps_past_a_short_case_read_nan_and_its_stages_minus_one(tmp_path)
 def test_a_chunk_of_the_wrong_size_is_refused(tmp_path):
     study = parse_study(STUDIES["three_dims"])
     chunk = run_chunk(study, "weakly_hypoelastic", 0, 3)
-    stream = ArchiveStream(tmp_path / "a.nc", ("weakly_hypoelastic",), __import__(
-        "ncstab.paths.api", fromlist=["ParameterGrid"]).ParameterGrid.from_mapping(study.parameters))
+    stream = ArchiveStream(tmp_path / "a.nc", ("weakly_hypoelastic",), ParameterGrid.from_mapping(study.parameters))
     with pytest.raises(ValueError, match=r"a chunk of cases 0:4 needs dimensions law = 1 and case = 4"):
         stream.append(chunk, "weakly_hypoelastic", 0, 4)
     stream.abort()
 
 
 def test_closing_before_every_law_is_in_is_refused(tmp_path):
-    from ncstab.paths.api import ParameterGrid
-
     study = parse_study(STUDIES["maps"])
     stream = ArchiveStream(tmp_path / "a.nc", tuple(study.laws), ParameterGrid.from_mapping(study.parameters))
     stream.append(run_chunk(study, "mcnamara", 0, 4), "mcnamara", 0, 4)

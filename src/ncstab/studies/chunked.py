@@ -35,7 +35,7 @@ import math
 import os
 import shutil
 import tempfile
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path as FilePath
 from typing import TYPE_CHECKING, Any
@@ -370,20 +370,21 @@ def _on_cluster(
     futures: dict[Any, Chunk] = {}
     where = str(directory) if shared else None
 
-    def submit() -> None:
+    def submit() -> Any:
+        """Submit the next chunk; its future, or None when every chunk is submitted."""
         chunk = next(pending, None)
-        if chunk is not None:
-            futures[client.submit(compute_part, study, chunk, where, digest, pure=False)] = chunk
+        if chunk is None:
+            return None
+        future = client.submit(compute_part, study, chunk, where, digest, pure=False)
+        futures[future] = chunk
+        return future
 
-    for _ in range(slots):
-        submit()
-    queue = distributed.as_completed(list(futures))
+    queue = distributed.as_completed([f for f in (submit() for _ in range(slots)) if f is not None])
     for future in queue:
         chunk = futures.pop(future)
-        before = set(futures)
-        submit()
-        for new in set(futures) - before:
-            queue.add(new)
+        following = submit()
+        if following is not None:
+            queue.add(following)
         result = future.result()
         future.release()
         del future
@@ -482,7 +483,8 @@ def run_study_chunked(
             append(chunk, _read_part(directory, chunk, digest))  # (not held after the call)
         if workers is None and scheduler is None:
             for chunk in missing:
-                _write_part(directory, chunk, digest, dataset := run_chunk(study, chunk.law, chunk.start, chunk.stop))
+                dataset = run_chunk(study, chunk.law, chunk.start, chunk.stop)
+                _write_part(directory, chunk, digest, dataset)
                 append(chunk, dataset)
                 del dataset  # one chunk held at a time: not this one while the next is computed
         elif missing:
