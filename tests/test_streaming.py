@@ -25,7 +25,7 @@ from ncstab.paths import ParameterGrid
 from ncstab.studies import open_study, parse_study, run_study, run_study_chunked, write_dataset
 from ncstab.studies.archive import COMPRESSION
 from ncstab.studies.chunked import run_chunk
-from ncstab.studies.streaming import ArchiveStream, hyperslabs
+from ncstab.studies.streaming import ArchiveStream, BlockLayout, encode_chunk
 
 PREAMBLE = """
 [system]
@@ -115,34 +115,59 @@ F2_lateral = [0.0, 0.2]
 
 
 @st.composite
-def ranges(draw):
-    shape = tuple(draw(st.lists(st.integers(1, 5), min_size=0, max_size=4)))
-    size = math.prod(shape)
-    start = draw(st.integers(0, size))
-    stop = draw(st.integers(start, size))
-    return shape, start, stop
+def layouts(draw):
+    shape = tuple(draw(st.lists(st.integers(1, 7), min_size=0, max_size=4)))
+    max_cases = draw(st.integers(1, 40))
+    return shape, max_cases
 
 
 @settings(max_examples=300, deadline=None)
-@given(ranges())
-def test_hyperslabs_cover_exactly_the_cases_in_order(case):
-    shape, start, stop = case
+@given(layouts())
+def test_blocks_are_boxes_that_tile_the_sweep_in_flat_order(case):
+    """Every HDF5 chunk of a streamed archive must belong to one chunk of cases:
+    blocks are flat runs that are also boxes of the sweep, aligned on the chunk
+    grid, no larger than asked, and the runs of whole blocks cover every case once."""
+    shape, max_cases = case
+    layout = BlockLayout.for_grid(shape, max_cases)
+    size = math.prod(shape)
     covered = []
-    boxes = list(hyperslabs(start, stop, shape))
-    for first, box in boxes:
-        assert len(box) == len(shape)
-        flat = np.ravel_multi_index(
-            np.meshgrid(*[np.arange(s.start, s.stop) for s in box], indexing="ij"), shape
-        ).ravel() if shape else np.array([0])
-        assert flat[0] == first and np.array_equal(flat, np.arange(first, first + flat.size)), "a box is a flat run"
+    for block in layout.blocks(0, size):
+        assert len(block.origin) == len(block.shape) == len(shape)
+        if shape:
+            flat = np.ravel_multi_index(
+                np.meshgrid(*[np.arange(o, o + n) for o, n in zip(block.origin, block.shape)], indexing="ij"), shape
+            ).ravel()
+            assert all(o % c == 0 for o, c in zip(block.origin, layout.chunk)), "on the chunk grid"
+            assert all(n <= c for n, c in zip(block.shape, layout.chunk))
+        else:
+            flat = np.array([0])
+        assert np.array_equal(flat, np.arange(block.start, block.stop)), "a block is a flat run"
+        assert block.stop - block.start <= max(max_cases, layout.tail)
         covered.extend(flat.tolist())
-    assert covered == list(range(start, stop))
-    assert len(boxes) <= max(1, 2 * len(shape) - 1)
+    assert covered == list(range(size))
+    assert layout.block_cases <= max_cases or layout.extent == 1
+    runs = layout.runs(max_cases)
+    assert [r[0] for r in runs][0] == 0 and runs[-1][1] == size
+    assert all(a[1] == b[0] for a, b in zip(runs, runs[1:]))
+    assert all(stop - start <= max(max_cases, layout.block_cases) for start, stop in runs)
 
 
-def test_hyperslabs_refuse_a_range_outside_the_array():
-    with pytest.raises(ValueError, match=r"cases 3:7 are not within an array of shape \(2, 3\)"):
-        list(hyperslabs(3, 7, (2, 3)))
+def test_blocks_are_as_large_as_allowed():
+    assert BlockLayout.for_grid((256, 256), 1024).chunk == (4, 256)
+    assert BlockLayout.for_grid((64, 64), 1024).chunk == (16, 64)
+    assert BlockLayout.for_grid((65537,), 1024).chunk == (1024,)  # a short last block
+    assert BlockLayout.for_grid((3, 5, 7), 40).chunk == (1, 5, 7)
+    assert BlockLayout.for_grid((), 10).chunk == ()
+
+
+def test_a_run_that_cuts_a_block_is_refused():
+    layout = BlockLayout.for_grid((4, 6), 12)  # blocks of 2 rows
+    with pytest.raises(ValueError, match=r"cases 6:24 do not start on a block of 12 cases"):
+        layout.blocks(6, 24)
+    with pytest.raises(ValueError, match=r"cases 0:18 do not end on a block of 12 cases"):
+        layout.blocks(0, 18)
+    with pytest.raises(ValueError, match=r"cases 3:27 are not within a sweep of shape \(4, 6\)"):
+        layout.blocks(3, 27)
 
 
 def _reference(study, directory):
@@ -186,19 +211,25 @@ def test_the_steps_past_a_short_case_read_nan_and_its_stages_minus_one(tmp_path)
             assert filters["zlib"] and filters["shuffle"] and filters["complevel"] == COMPRESSION["complevel"], name
 
 
+def _stream(study, path):
+    grid = ParameterGrid.from_mapping(study.parameters)
+    return ArchiveStream(path, tuple(study.laws), grid, BlockLayout.for_grid(grid.shape, 4)), tuple(grid.sweep)
+
+
 def test_a_chunk_of_the_wrong_size_is_refused(tmp_path):
     study = parse_study(STUDIES["three_dims"])
     chunk = run_chunk(study, "weakly_hypoelastic", 0, 3)
-    stream = ArchiveStream(tmp_path / "a.nc", ("weakly_hypoelastic",), ParameterGrid.from_mapping(study.parameters))
+    stream, sweep = _stream(study, tmp_path / "a.nc")
     with pytest.raises(ValueError, match=r"a chunk of cases 0:4 needs dimensions law = 1 and case = 4"):
-        stream.append(chunk, "weakly_hypoelastic", 0, 4)
-    stream.abort()
+        encode_chunk(chunk, "weakly_hypoelastic", 0, 0, 4, stream.layout, sweep)
+    with pytest.raises(ValueError, match=r"cases 0:3 do not end on a block of 4 cases"):
+        encode_chunk(chunk, "weakly_hypoelastic", 0, 0, 3, stream.layout, sweep)
 
 
 def test_closing_before_every_law_is_in_is_refused(tmp_path):
     study = parse_study(STUDIES["maps"])
-    stream = ArchiveStream(tmp_path / "a.nc", tuple(study.laws), ParameterGrid.from_mapping(study.parameters))
-    stream.append(run_chunk(study, "mcnamara", 0, 4), "mcnamara", 0, 4)
+    stream, sweep = _stream(study, tmp_path / "a.nc")
+    stream.append(encode_chunk(run_chunk(study, "mcnamara", 0, 4), "mcnamara", 1, 0, 4, stream.layout, sweep))
     with pytest.raises(ValueError, match="no chunk of law.s. weakly_hypoelastic was appended"):
         stream.close()
     stream.abort()

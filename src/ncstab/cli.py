@@ -232,7 +232,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     run.add_argument("--chunk-cases", type=int, metavar="N",
                      help="run in chunks of at most N cases, each kept in OUT.nc.parts/ as it "
-                          "finishes (default with --resume/--workers/--scheduler: 4096)")
+                          "finishes (default: 8192 in this process; with --workers, about four chunks per "
+                          "worker, 256 to 8192). Studies of more than 8192 cases per law always run in chunks")
     run.add_argument("--resume", action="store_true",
                      help="keep the chunks an interrupted run left in OUT.nc.parts/ and compute "
                           "only the missing ones")

@@ -1,24 +1,34 @@
 """A study's archive written chunk by chunk: memory bounded by one chunk, whatever the sweep.
 
 A large sweep is followed in chunks of flat cases (:mod:`ncstab.studies.chunked`).
-Each chunk's Dataset (dimension ``case`` in place of the swept parameters, see
-:class:`ncstab.paths.api.CaseRange`) is appended to the archive as soon as it
-is computed, into the hyperslabs its cases occupy, so the whole archive is never
-held in memory.  The ``step`` dimension is a NetCDF *unlimited* dimension: the
-longest path is known only once every chunk is in.  Floating-point variables
-read NaN past each case's last written step (their ``_FillValue``, as in an
-archive written at once); integer ones (``stage``) are padded with -1 when the
-archive is closed.  The archive reads back (:func:`~ncstab.studies.open_study`)
-identical to the one :func:`~ncstab.studies.write_dataset` writes for the whole
-run.
+The archive's HDF5 chunks are laid out so that every chunk of the archive
+belongs to exactly one chunk of cases (:class:`BlockLayout`): its cases form a
+*block*, a run of the flat cases that is also a box of the swept dimensions.
+Whoever computes a chunk of cases (the process itself or a dask worker)
+therefore also compresses its part of the archive, byte-shuffle then deflate
+as the HDF5 filters would (:func:`encode_chunk`), and the process that owns
+the archive only copies the compressed bytes in
+(:meth:`ArchiveStream.append`, HDF5's direct chunk write through h5py).
+Compression, the dearest part of writing, is spread over the workers.
+
+The ``step`` dimension is a NetCDF *unlimited* dimension: the longest path is
+known only once every chunk is in.  Floating-point variables read NaN past
+each case's last step (their ``_FillValue``, as in an archive written at
+once); integer ones (``stage``) are padded with -1, in the chunks that hold a
+case's last steps by the encoder and in the chunks past them when the archive
+is closed.  The archive reads back (:func:`~ncstab.studies.open_study`)
+identical to the one :func:`~ncstab.studies.write_dataset` writes for the
+whole run.
 """
 
 from __future__ import annotations
 
 import datetime as _dt
+import itertools
 import math
 import os
-from collections.abc import Iterator
+import zlib
+from dataclasses import dataclass, field
 from pathlib import Path as FilePath
 from typing import TYPE_CHECKING, Any
 
@@ -33,66 +43,260 @@ if TYPE_CHECKING:  # pragma: no cover
 
     from ncstab.paths.api import ParameterGrid
 
-__all__ = ["ArchiveStream", "hyperslabs"]
+__all__ = ["ArchiveStream", "BlockLayout", "EncodedChunk", "encode_chunk"]
 
-#: States per HDF5 chunk along the (unlimited) ``step`` dimension.
+#: States per HDF5 chunk along the (unlimited) ``step`` dimension, at most.
 STEP_CHUNK = 64
 #: Target number of elements per HDF5 chunk (512 KiB of float64).
 CHUNK_ELEMENTS = 65536
-#: HDF5 chunk cache per variable, bytes: a few chunks, so that memory stays
-#: bounded (about 100 variables) while a chunk of cases is written.
-VARIABLE_CACHE_BYTES = 2 * 2**20
+#: Cases per block (per HDF5 chunk along the swept dimensions), at most.
+BLOCK_CASES = 1024
+#: Padding of integer variables past a case's last step (as in a whole run's Dataset).
+INTEGER_PADDING = -1
 
 
-def hyperslabs(start: int, stop: int, shape: tuple[int, ...]) -> Iterator[tuple[int, tuple[slice, ...]]]:
-    """Cover the flat (C order) cases ``start:stop`` of an array of ``shape`` with boxes.
+@dataclass(frozen=True)
+class Block:
+    """Flat cases ``start:stop`` of the sweep, which are also the box ``origin + shape``."""
 
-    Yields
-    ------
-    (int, tuple of slice)
-        The flat index of the box's first case, and the box as one slice per
-        dimension.  The boxes are in flat order, disjoint, and their cases are
-        exactly ``start:stop``; there are at most ``2 len(shape) - 1`` of them.
+    start: int
+    stop: int
+    origin: tuple[int, ...]
+    shape: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class BlockLayout:
+    """How the swept dimensions of an archive are cut into HDF5 chunks.
+
+    A chunk spans ``extent`` values of the swept dimension ``axis``, every value
+    of the dimensions after it and one value of those before it, so that its
+    cases are consecutive in flat (C) order: a block.  Blocks tile the sweep in
+    order; the last block along ``axis`` may be shorter.
+
+    Parameters
+    ----------
+    shape
+        Sizes of the swept dimensions (``()`` for a single case).
+    axis, extent
+        The dimension the blocks cut, and the values of it per block.
     """
-    if not 0 <= start <= stop <= math.prod(shape):
-        raise ValueError(f"cases {start}:{stop} are not within an array of shape {shape}")
-    if start == stop:
-        return
-    if not shape:
-        yield start, ()
-        return
-    inner = math.prod(shape[1:])
-    position = start
-    while position < stop:
-        row, offset = divmod(position, inner)
-        if offset == 0 and stop - position >= inner:
-            rows = (stop - position) // inner
-            yield position, (slice(row, row + rows),) + tuple(slice(0, n) for n in shape[1:])
-            position += rows * inner
-        else:
-            end = min(inner, stop - row * inner)
-            for first, box in hyperslabs(offset, end, shape[1:]):
-                yield row * inner + first, (slice(row, row + 1),) + box
-            position = row * inner + end
+
+    shape: tuple[int, ...]
+    axis: int
+    extent: int
+
+    @classmethod
+    def for_grid(cls, shape: tuple[int, ...], max_cases: int) -> "BlockLayout":
+        """The layout of the largest blocks of at most ``max_cases`` cases (at least one value)."""
+        shape = tuple(int(n) for n in shape)
+        if not shape:
+            return cls((), 0, 1)
+        tail = 1
+        for axis in reversed(range(len(shape))):
+            extent = min(shape[axis], max(1, int(max_cases) // tail))
+            if extent < shape[axis] or axis == 0:
+                return cls(shape, axis, extent)
+            tail *= shape[axis]
+        raise AssertionError("unreachable")  # pragma: no cover
+
+    @property
+    def tail(self) -> int:
+        """Cases per value of ``axis`` (the product of the later swept sizes)."""
+        return math.prod(self.shape[self.axis + 1 :])
+
+    @property
+    def chunk(self) -> tuple[int, ...]:
+        """The HDF5 chunk shape along the swept dimensions."""
+        if not self.shape:
+            return ()
+        return (1,) * self.axis + (self.extent,) + self.shape[self.axis + 1 :]
+
+    @property
+    def block_cases(self) -> int:
+        """Cases of a whole block."""
+        return self.extent * self.tail
+
+    def blocks(self, start: int, stop: int) -> list[Block]:
+        """The blocks that make up the flat cases ``start:stop``.
+
+        Raises
+        ------
+        ValueError
+            ``start:stop`` is not a run of whole blocks.
+        """
+        size = math.prod(self.shape)
+        if not 0 <= start <= stop <= size:
+            raise ValueError(f"cases {start}:{stop} are not within a sweep of shape {self.shape}")
+        out = []
+        position = start
+        while position < stop:
+            index = tuple(int(i) for i in np.unravel_index(position, self.shape)) if self.shape else ()
+            if self.shape and (index[self.axis] % self.extent or any(index[self.axis + 1 :])):
+                raise ValueError(
+                    f"cases {start}:{stop} do not start on a block of {self.block_cases} cases "
+                    f"(the archive's chunks along the sweep {self.shape} are {self.chunk})"
+                )
+            rows = min(self.extent, self.shape[self.axis] - index[self.axis]) if self.shape else 1
+            shape = (1,) * self.axis + (rows,) + self.shape[self.axis + 1 :] if self.shape else ()
+            out.append(Block(position, position + rows * self.tail, index, shape))
+            position += rows * self.tail
+        if position != stop:
+            raise ValueError(f"cases {start}:{stop} do not end on a block of {self.block_cases} cases")
+        return out
+
+    def runs(self, max_cases: int) -> list[tuple[int, int]]:
+        """The sweep cut into runs of whole blocks of at most ``max_cases`` cases (at least one block)."""
+        every = self.blocks(0, math.prod(self.shape))
+        runs: list[tuple[int, int]] = []
+        for block in every:
+            if runs and block.stop - runs[-1][0] <= max_cases:
+                runs[-1] = (runs[-1][0], block.stop)
+            else:
+                runs.append((block.start, block.stop))
+        return runs
 
 
-def _box_shape(box: tuple[slice, ...]) -> tuple[int, ...]:
-    return tuple(s.stop - s.start for s in box)
+def _is_encoded(variable: Any) -> bool:
+    """Whether a chunk variable goes in as compressed HDF5 chunks (numbers with a ``case`` dimension)."""
+    return CASE_DIMENSION in variable.dims and variable.dtype.kind in "iuf"
 
 
-def _chunk_sizes(dims: tuple[str, ...], sizes: dict[str, int]) -> list[int]:
-    """HDF5 chunk shape: trailing dimensions whole, ``step`` by :data:`STEP_CHUNK`, then
-    as many of the last swept values as fit in :data:`CHUNK_ELEMENTS`; one law per chunk."""
-    out = [1] * len(dims)
+def variable_chunk(dims: tuple[str, ...], sizes: dict[str, int], layout: BlockLayout, sweep: tuple[str, ...]) -> tuple[int, ...]:
+    """HDF5 chunk shape of an archive variable: one law, a block of the sweep, then
+    ``step`` (at most :data:`STEP_CHUNK`) and trailing dimensions filled, from the
+    last, up to about :data:`CHUNK_ELEMENTS` elements."""
+    swept = dict(zip(sweep, layout.chunk))
+    budget = max(1, CHUNK_ELEMENTS // layout.block_cases)
     elements = 1
-    for position in reversed(range(len(dims))):
-        name = dims[position]
+    out = []
+    for name in reversed(dims):
         if name == "law":
+            out.append(1)
+        elif name in swept:
+            out.append(swept[name])
+        else:
+            size = STEP_CHUNK if name == "step" else sizes[name]
+            extent = max(1, min(size, budget // elements))
+            elements *= extent
+            out.append(extent)
+    return tuple(reversed(out))
+
+
+def deflate_shuffled(values: np.ndarray) -> bytes:
+    """One HDF5 chunk as the archive's filters store it: byte shuffle, then deflate.
+
+    The same bytes HDF5 writes for a variable encoded with
+    :data:`~ncstab.studies.archive.COMPRESSION` (``shuffle`` then ``zlib`` at
+    ``complevel``); the reader's filters undo them.
+    """
+    values = np.ascontiguousarray(values)
+    shuffled = values.view(np.uint8).reshape(-1, values.itemsize).T.tobytes()
+    return zlib.compress(shuffled, COMPRESSION["complevel"])
+
+
+def _fill(dtype: np.dtype) -> Any:
+    return np.nan if dtype.kind == "f" else INTEGER_PADDING
+
+
+@dataclass
+class EncodedChunk:
+    """A chunk of cases of one law, ready to be copied into the archive.
+
+    Attributes
+    ----------
+    law, start, stop
+        The law and the flat cases ``start:stop``.
+    steps
+        Length of the chunk's ``step`` dimension (its longest case).
+    law_class
+        The law's class (the ``law_class`` coordinate).
+    template
+        The chunk's Dataset without its cases (``case`` of size 0): the
+        variables, their dimensions, attributes and the values of those
+        without a ``case`` dimension.
+    chunks
+        ``(variable, chunk offset, compressed bytes)`` of every HDF5 chunk of
+        the numeric variables (:func:`deflate_shuffled`).
+    strings
+        The other variables with a ``case`` dimension (text), as arrays of the
+        chunk's cases.
+    """
+
+    law: str
+    start: int
+    stop: int
+    steps: int
+    law_class: str
+    template: "xr.Dataset"
+    chunks: list[tuple[str, tuple[int, ...], bytes]] = field(default_factory=list)
+    strings: dict[str, np.ndarray] = field(default_factory=dict)
+
+
+def _full_dims(dims: tuple[str, ...], sweep: tuple[str, ...]) -> tuple[str, ...]:
+    """A chunk variable's dimensions in the whole archive: ``case`` becomes the swept parameters."""
+    out: list[str] = []
+    for name in dims:
+        if name == CASE_DIMENSION:
+            out.extend(sweep)
+        else:
+            out.append(name)
+    return tuple(out)
+
+
+def encode_chunk(
+    dataset: "xr.Dataset", law: str, law_index: int, start: int, stop: int, layout: BlockLayout,
+    sweep: tuple[str, ...],
+) -> EncodedChunk:
+    """Compress a chunk's Dataset into the archive's HDF5 chunks (blocks of ``layout``).
+
+    Parameters
+    ----------
+    dataset
+        The chunk's Dataset (:func:`~ncstab.studies.chunked.run_chunk`): ``law``
+        of size 1 and ``case`` (``stop - start`` cases) in place of the swept
+        parameters ``sweep``.
+    law, law_index
+        The law and its place in the study's laws.
+    start, stop
+        The chunk's flat cases: a run of whole blocks of ``layout``.
+    """
+    if dataset.sizes.get("law") != 1 or dataset.sizes.get(CASE_DIMENSION) != stop - start:
+        raise ValueError(
+            f"a chunk of cases {start}:{stop} needs dimensions law = 1 and case = {stop - start}, "
+            f"got {dict(dataset.sizes)}"
+        )
+    blocks = layout.blocks(start, stop)
+    steps = int(dataset.sizes.get("step", 0))
+    sizes = dict(dataset.sizes)
+    encoded = EncodedChunk(
+        law=law, start=start, stop=stop, steps=steps, law_class=str(dataset["law_class"].values[0]),
+        template=dataset.isel({CASE_DIMENSION: slice(0, 0)}),
+    )
+    for name, variable in dataset.variables.items():
+        if CASE_DIMENSION not in variable.dims or name == CASE_DIMENSION:
             continue
-        size = STEP_CHUNK if name == "step" else sizes[name]
-        out[position] = max(1, min(size, CHUNK_ELEMENTS // elements))
-        elements *= out[position]
-    return out
+        values = variable.values[0]  # (case, *rest)
+        if not _is_encoded(variable):
+            encoded.strings[str(name)] = values
+            continue
+        dims = _full_dims(variable.dims, sweep)
+        chunk = variable_chunk(dims, sizes, layout, sweep)
+        rest_chunk = chunk[1 + len(sweep) :]
+        rest_shape = values.shape[1:]
+        # Chunk positions along the trailing dimensions (only those that hold steps of this chunk).
+        counts = [math.ceil(n / c) for n, c in zip(rest_shape, rest_chunk)]
+        fill = _fill(values.dtype)
+        for block in blocks:
+            padded = np.full(layout.chunk + tuple(k * c for k, c in zip(counts, rest_chunk)), fill, values.dtype)
+            box = tuple(slice(0, n) for n in block.shape) + tuple(slice(0, n) for n in rest_shape)
+            padded[box] = values[block.start - start : block.stop - start].reshape(block.shape + rest_shape)
+            for position in itertools.product(*(range(k) for k in counts)):
+                window = tuple(slice(p * c, (p + 1) * c) for p, c in zip(position, rest_chunk))
+                piece = padded[(Ellipsis, *window)] if window else padded
+                offset = (law_index, *block.origin, *(p * c for p, c in zip(position, rest_chunk)))
+                encoded.chunks.append((str(name), offset, deflate_shuffled(piece[np.newaxis])))
+    return encoded
 
 
 class ArchiveStream:
@@ -107,132 +311,152 @@ class ArchiveStream:
         The study's laws, in order (the ``law`` dimension).
     grid
         The study's parameter grid (the swept dimensions after ``law``).
+    layout
+        The blocks of the archive's chunks (:class:`BlockLayout` of the grid's shape).
 
     Notes
     -----
-    The file is created at the first :meth:`append`: the chunk's Dataset
-    gives the variables, their attributes and the dimensions other than
-    ``law``, the swept parameters and ``step``.
+    The file is created with netCDF4 at the first :meth:`append` (the chunk's
+    template gives the variables, their attributes and the dimensions other
+    than ``law``, the swept parameters and ``step``), then filled with h5py,
+    whose direct chunk writes copy the encoded chunks in as they are; the law
+    classes are written with netCDF4 again at :meth:`close`.
     """
 
-    def __init__(self, path: str | os.PathLike[str], laws: tuple[str, ...], grid: "ParameterGrid") -> None:
+    def __init__(
+        self, path: str | os.PathLike[str], laws: tuple[str, ...], grid: "ParameterGrid", layout: BlockLayout
+    ) -> None:
+        if tuple(layout.shape) != tuple(grid.shape):
+            raise ValueError(f"a block layout of shape {layout.shape} does not fit a sweep of shape {grid.shape}")
         self.path = FilePath(path)
         self.laws = tuple(laws)
         self.grid = grid
-        self._file: Any = None
+        self.layout = layout
+        self._file: Any = None  # the h5py File once created
         self._written: list[tuple[int, int, int, int]] = []  # (law index, start, stop, steps)
-        self._step_integers: list[str] = []
+        self._step_variables: dict[str, int] = {}  # name: axis of step
+        self._step_integers: dict[str, tuple[int, ...]] = {}  # name: chunk shape
         self._classes: dict[str, str] = {}
+        self._length = 0
+
+    @property
+    def sweep(self) -> tuple[str, ...]:
+        return tuple(self.grid.sweep)
 
     # -- creation -------------------------------------------------------------------------
-    def _full_dims(self, dims: tuple[str, ...]) -> tuple[str, ...]:
-        """A chunk variable's dimensions in the whole archive: ``case`` becomes the swept parameters."""
-        out: list[str] = []
-        for name in dims:
-            if name == CASE_DIMENSION:
-                out.extend(self.grid.sweep)
-            else:
-                out.append(name)
-        return tuple(out)
-
-    def _create(self, chunk: "xr.Dataset") -> None:
+    def _create(self, template: "xr.Dataset") -> None:
+        import h5py
         import netCDF4
 
         handle = netCDF4.Dataset(self.path, "w", format="NETCDF4")
-        self._file = handle
+        try:
+            self._define_all(handle, template)
+        finally:
+            handle.close()
+        self._file = h5py.File(self.path, "r+")
+
+    def _define_all(self, handle: Any, template: "xr.Dataset") -> None:
         sizes = {"law": len(self.laws), **{name: values.size for name, values in self.grid.sweep.items()}}
         handle.createDimension("law", len(self.laws))
         for name, values in self.grid.sweep.items():
             handle.createDimension(name, values.size)
-        for name, size in chunk.sizes.items():
+        for name, size in template.sizes.items():
             if name in ("law", CASE_DIMENSION):
                 continue
             handle.createDimension(name, None if name == "step" else size)
             sizes[name] = size
-        attrs = dict(chunk.attrs)
+        attrs = dict(template.attrs)
         attrs["created"] = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
         handle.setncatts(attrs)
 
-        index_names = set(chunk.dims) | set(self.grid.sweep) | {"law"}
-        auxiliary = [name for name in chunk.coords if name not in index_names]
+        index_names = set(template.dims) | set(self.grid.sweep) | {"law"}
+        auxiliary = [name for name in template.coords if name not in index_names]
         attached: set[str] = set()
-        for name, variable in chunk.variables.items():
+        for name, variable in template.variables.items():
             if name == CASE_DIMENSION:
                 continue
-            dims = self._full_dims(variable.dims)
+            dims = _full_dims(variable.dims, self.sweep)
             attrs = dict(variable.attrs)
-            if name in chunk.data_vars:
-                coordinates = [c for c in auxiliary if set(chunk[c].dims) <= set(variable.dims)]
+            if name in template.data_vars:
+                coordinates = [c for c in auxiliary if set(template[c].dims) <= set(variable.dims)]
                 attached.update(coordinates)
                 if coordinates:
                     attrs["coordinates"] = " ".join(coordinates)
-            self._define(name, variable.dtype, dims, attrs, is_index=name in index_names, sizes=sizes)
-            if "step" in dims and "law" in dims and variable.dtype.kind in "iu":
-                self._step_integers.append(name)
+            chunk = variable_chunk(dims, sizes, self.layout, self.sweep) if _is_encoded(variable) else None
+            self._define(handle, str(name), variable.dtype, dims, attrs, name in index_names, sizes, chunk)
+            if "step" in dims:
+                self._step_variables[str(name)] = dims.index("step")
+                if chunk is not None and variable.dtype.kind in "iu":
+                    self._step_integers[str(name)] = chunk
             if "law" not in dims and name != "step":
-                self._put(name, (), variable.values)
+                handle.variables[name][:] = variable.values.astype(object) if variable.dtype.kind == "U" else variable.values
         unattached = [c for c in auxiliary if c not in attached]
         if unattached:
             handle.setncattr("coordinates", " ".join(unattached))
         for name, values in self.grid.sweep.items():
-            self._define(name, values.dtype, (name,), parameter_attributes(name), is_index=True, sizes=sizes)
-            self._put(name, (), values)
-        self._put("law", (), np.array(self.laws, dtype=object))
+            self._define(handle, name, values.dtype, (name,), parameter_attributes(name), True, sizes, None)
+            handle.variables[name][:] = values
+        handle.variables["law"][:] = np.array(self.laws, dtype=object)
 
+    @staticmethod
     def _define(
-        self, name: str, dtype: np.dtype, dims: tuple[str, ...], attrs: dict[str, Any], is_index: bool,
-        sizes: dict[str, int],
+        handle: Any, name: str, dtype: np.dtype, dims: tuple[str, ...], attrs: dict[str, Any], is_index: bool,
+        sizes: dict[str, int], chunk: tuple[int, ...] | None,
     ) -> None:
         numeric = dtype.kind in "biuf"
         options: dict[str, Any] = {}
-        if numeric and dims and math.prod(STEP_CHUNK if d == "step" else sizes[d] for d in dims) >= MIN_COMPRESSED_SIZE:
-            options.update(COMPRESSION, chunksizes=_chunk_sizes(dims, sizes))
+        if chunk is not None:
+            options.update(COMPRESSION, chunksizes=list(chunk))
+        elif numeric and dims and math.prod(STEP_CHUNK if d == "step" else sizes[d] for d in dims) >= MIN_COMPRESSED_SIZE:
+            options.update(COMPRESSION)
         if dtype.kind == "f" and not is_index:
             options["fill_value"] = np.nan
-        variable = self._file.createVariable(name, dtype if numeric else str, dims, **options)
-        if "chunksizes" in options:
-            variable.set_var_chunk_cache(size=VARIABLE_CACHE_BYTES)
+        variable = handle.createVariable(name, dtype if numeric else str, dims, **options)
         variable.setncatts(attrs)
 
-    def _put(self, name: str, index: tuple, values: np.ndarray) -> None:
-        target = self._file.variables[name]
-        if values.dtype.kind == "U":
-            values = values.astype(object)
-        target[index if index else slice(None)] = values
+    def _extend_steps(self, steps: int) -> None:
+        """Grow the ``step`` dimension of every variable that has it to ``steps``."""
+        if steps <= self._length:
+            return
+        for name, axis in self._step_variables.items():
+            self._file[name].resize(steps, axis=axis)
+        self._length = steps
 
     # -- filling --------------------------------------------------------------------------
-    def append(self, chunk: "xr.Dataset", law: str, start: int, stop: int) -> None:
-        """Write the Dataset of the cases ``start:stop`` of ``law`` into their hyperslabs.
-
-        Parameters
-        ----------
-        chunk
-            The chunk's Dataset: dimensions ``law`` (of size 1) and ``case``
-            (``stop - start`` cases) in place of the swept parameters.
-        """
-        if chunk.sizes.get("law") != 1 or chunk.sizes.get(CASE_DIMENSION) != stop - start:
-            raise ValueError(
-                f"a chunk of cases {start}:{stop} needs dimensions law = 1 and case = {stop - start}, "
-                f"got {dict(chunk.sizes)}"
-            )
+    def append(self, encoded: EncodedChunk) -> None:
+        """Copy an encoded chunk of cases (:func:`encode_chunk`) into the archive."""
+        if encoded.law not in self.laws:
+            raise ValueError(f"law {encoded.law!r} is not one of this archive's laws {self.laws}")
+        blocks = self.layout.blocks(encoded.start, encoded.stop)
         if self._file is None:
-            self._create(chunk)
-        k = self.laws.index(law)
-        steps = int(chunk.sizes.get("step", 0))
-        boxes = list(hyperslabs(start, stop, self.grid.shape))
-        for name, variable in chunk.variables.items():
-            if CASE_DIMENSION not in variable.dims or name == CASE_DIMENSION:
-                continue
-            values = variable.values[0]
-            trailing = tuple(slice(0, steps) if d == "step" else slice(None) for d in variable.dims[2:])
-            for first, box in boxes:
-                block = values[first - start : first - start + math.prod(_box_shape(box))]
-                # The law as a slice: every block is an array (netCDF strings refuse 0-d ones).
-                shape = (1, *_box_shape(box), *values.shape[1:])
-                self._put(name, (slice(k, k + 1), *box, *trailing), block.reshape(shape))
-        self._classes[law] = str(chunk["law_class"].values[0])
-        self._put("law_class", (slice(k, k + 1),), chunk["law_class"].values[:1])
-        self._written.append((k, start, stop, steps))
+            self._create(encoded.template)
+        k = self.laws.index(encoded.law)
+        self._extend_steps(encoded.steps)
+        for name, offset, data in encoded.chunks:
+            self._file[name].id.write_direct_chunk(offset, data)
+        for name, values in encoded.strings.items():
+            for block in blocks:
+                box = tuple(slice(o, o + n) for o, n in zip(block.origin, block.shape))
+                target = values[block.start - encoded.start : block.stop - encoded.start]
+                self._file[name][(slice(k, k + 1), *box)] = target.reshape((1, *block.shape, *values.shape[1:])).astype(object)
+        self._classes[encoded.law] = encoded.law_class
+        self._written.append((k, encoded.start, encoded.stop, encoded.steps))
+
+    def _pad_integers(self) -> None:
+        """Write the chunks of integer step variables past each chunk's last step, as -1."""
+        for name, chunk in self._step_integers.items():
+            dataset = self._file[name]
+            after_sweep = 1 + len(self.sweep)
+            step_axis = self._step_variables[name] - after_sweep
+            rest_shape, rest_chunk = dataset.shape[after_sweep:], chunk[after_sweep:]
+            padding = deflate_shuffled(np.full(chunk, INTEGER_PADDING, dataset.dtype))
+            for k, start, stop, steps in self._written:
+                free = math.ceil(steps / rest_chunk[step_axis]) * rest_chunk[step_axis]
+                ranges = [range(0, n, c) for n, c in zip(rest_shape, rest_chunk)]
+                ranges[step_axis] = range(free, self._length, rest_chunk[step_axis])
+                for block in self.layout.blocks(start, stop):
+                    for position in itertools.product(*ranges):
+                        dataset.id.write_direct_chunk((k, *block.origin, *position), padding)
 
     def close(self) -> None:
         """Write the ``step`` coordinate, pad integer step variables with -1, close the file."""
@@ -241,21 +465,17 @@ class ArchiveStream:
         missing = [law for law in self.laws if law not in self._classes]
         if missing:
             raise ValueError(f"{self.path}: no chunk of law(s) {', '.join(missing)} was appended")
-        # As in a whole run's Dataset (ncstab.paths.Path.to_dataset): every law's class.
-        self._file.setncattr("law_class", "; ".join(f"{law}: {self._classes[law]}" for law in self.laws))
-        length = max(steps for *_, steps in self._written)
-        self._put("step", (), np.arange(length, dtype=self._file.variables["step"].dtype))
-        for k, start, stop, steps in self._written:
-            if steps == length:
-                continue
-            for name in self._step_integers:
-                variable = self._file.variables[name]
-                after = variable.dimensions[variable.dimensions.index("step") + 1 :]
-                for _, box in hyperslabs(start, stop, self.grid.shape):
-                    index = (k, *box, slice(steps, length), *(slice(None) for _ in after))
-                    variable[index] = np.full(_box_shape(box) + (length - steps,) + variable.shape[len(box) + 2 :], -1)
+        if "step" in self._file:
+            self._file["step"][:] = np.arange(self._length, dtype=self._file["step"].dtype)
+        self._pad_integers()
         self._file.close()
         self._file = None
+        import netCDF4
+
+        with netCDF4.Dataset(self.path, "a") as handle:
+            # As in a whole run's Dataset (ncstab.paths.Path.to_dataset): every law's class.
+            handle.variables["law_class"][:] = np.array([self._classes[law] for law in self.laws], dtype=object)
+            handle.setncattr("law_class", "; ".join(f"{law}: {self._classes[law]}" for law in self.laws))
 
     def abort(self) -> None:
         """Close the file without completing it (the caller removes it)."""
