@@ -11,6 +11,7 @@ tolerance -- to the archive of the plain in-process run, but for the
 
 from __future__ import annotations
 
+import itertools
 import math
 import tracemalloc
 
@@ -147,8 +148,8 @@ def test_blocks_are_boxes_that_tile_the_sweep_in_flat_order(case):
     assert covered == list(range(size))
     assert layout.block_cases <= max_cases or layout.extent == 1
     runs = layout.runs(max_cases)
-    assert [r[0] for r in runs][0] == 0 and runs[-1][1] == size
-    assert all(a[1] == b[0] for a, b in zip(runs, runs[1:]))
+    assert runs[0][0] == 0 and runs[-1][1] == size
+    assert all(a[1] == b[0] for a, b in itertools.pairwise(runs))
     assert all(stop - start <= max(max_cases, layout.block_cases) for start, stop in runs)
 
 
@@ -191,6 +192,17 @@ def test_a_streamed_archive_is_the_in_process_archive(name, chunk_cases, tmp_pat
     run_study_chunked(study, output, chunk_cases=chunk_cases)
     xr.testing.assert_identical(_without_time_stamp(open_study(output)), _without_time_stamp(reference))
     assert [p.name for p in output.parent.iterdir()] == [output.name], "no part or temporary is left"
+
+
+def test_a_last_block_shorter_than_the_others_is_written_whole(tmp_path):
+    """Three cases in blocks of two: the archive's last HDF5 chunk along the sweep
+    reaches past the sweep, and only its first case is in the file."""
+    study = parse_study(STUDIES["rigid"])
+    output = tmp_path / "rigid.nc"
+    run_study_chunked(study, output, chunk_cases=2)
+    with netCDF4.Dataset(output) as nc:
+        assert nc.variables["u"].chunking()[:2] == [1, 2]
+    xr.testing.assert_identical(_without_time_stamp(open_study(output)), _without_time_stamp(_reference(study, tmp_path)))
 
 
 def test_the_steps_past_a_short_case_read_nan_and_its_stages_minus_one(tmp_path):

@@ -52,7 +52,13 @@ from ncstab.paths.engine import follow_cases
 from ncstab.paths.result import Path
 from ncstab.studies.archive import atomic_destination, open_study
 from ncstab.studies.run import study_dataset
-from ncstab.studies.streaming import BLOCK_CASES, ArchiveStream, BlockLayout, EncodedChunk, encode_chunk
+from ncstab.studies.streaming import (
+    BLOCK_CASES,
+    ArchiveStream,
+    BlockLayout,
+    EncodedChunk,
+    encode_chunk,
+)
 from ncstab.studies.study import Study
 from ncstab.systems import SYSTEMS
 
@@ -62,9 +68,9 @@ if TYPE_CHECKING:  # pragma: no cover
 __all__ = [
     "DEFAULT_CHUNK_CASES",
     "Chunk",
+    "ResumeError",
     "archive_layout",
     "default_chunk_cases",
-    "ResumeError",
     "parts_directory",
     "plan_chunks",
     "run_chunk",
