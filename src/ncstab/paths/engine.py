@@ -561,6 +561,688 @@ def _switch_contacts(
     return y, np.sum(motion(after) * motion(before), axis=-1) < 0
 
 
+def _event_tables(
+    programme: LoadingProgramme, secondary_contacts: str
+) -> tuple[dict[str, list[int]], np.ndarray, np.ndarray]:
+    """What a sign change of each indicator column means for the path.
+
+    Returns
+    -------
+    event_column
+        Per event name, its indicator columns.
+    stop_table
+        ``(stages, columns)`` bool: a crossing of the column stops the case in
+        that stage (the stage's ``stop_at``; every secondary contact with
+        ``secondary_contacts = "stop"``).
+    break_columns
+        ``(columns,)`` bool: a crossing switches the contact state, so the step
+        is cut there (secondary contacts with ``"activate"``; the normal
+        contact of a no_tension law, whose opening and closing switch smooth
+        branch, seed Eq. 59).
+    """
+    event_column = {name: [i for i, e in enumerate(INDICATOR_EVENTS) if e == name] for name in EVENTS}
+    stop_table = np.zeros((len(programme), len(INDICATOR_EVENTS)), dtype=bool)
+    for k, stage in enumerate(programme.stages):
+        for name in stage.stop_at:
+            stop_table[k, event_column[name]] = True
+        if secondary_contacts == "stop":
+            stop_table[k, event_column["secondary_contact"]] = True
+    break_columns = np.zeros(len(INDICATOR_EVENTS), dtype=bool)
+    if secondary_contacts == "activate":
+        break_columns[event_column["secondary_contact"]] = True
+    break_columns[INDICATOR_EVENTS.index("normal_contact")] = True
+    return event_column, stop_table, break_columns
+
+
+class _CycleTurns:
+    """Per-turn results of the cycle stages of a programme (``CaseResult.cycles``).
+
+    A turn starts where a case enters a stage or closes the previous turn, and
+    closes where the cycle (or target) column of a cycle stage is cut.
+
+    Attributes
+    ----------
+    turns
+        ``(stages,)`` turns of each stage (0 for a linear stage).
+    first
+        ``(stages,)`` column of each stage's first turn in the tables.
+    tables
+        ``work`` ``(B, C)``: the work per contact over the turn (seed Eq. 5,
+        from the integrated work W); ``force_gap`` ``(B, C, n)``: F at the end
+        minus F at the start; ``tangential_drift`` ``(B, C)``: the same for T;
+        ``stage`` ``(C,)``.
+    start_work, start_forces, start_tangential
+        W, F and T where each case's current turn started.
+    """
+
+    def __init__(self, programme: LoadingProgramme, size: int, n: int) -> None:
+        self.turns = np.array([st.turns if isinstance(st, CycleStage) else 0 for st in programme.stages])
+        self.first = np.concatenate([[0], np.cumsum(self.turns)])[:-1].astype(int)
+        n_cycles = int(self.turns.sum())
+        self.tables = {
+            "work": np.full((size, n_cycles), np.nan),
+            "force_gap": np.full((size, n_cycles, n), np.nan),
+            "tangential_drift": np.full((size, n_cycles), np.nan),
+            "stage": np.repeat(np.arange(len(programme)), self.turns).astype(int),
+        }
+        self.start_work = np.zeros(size)
+        self.start_forces = np.zeros((size, n))
+        self.start_tangential = np.zeros(size)
+
+    def start(self, cases: np.ndarray, work: np.ndarray, evaluation: Evaluation) -> None:
+        """A turn starts for ``cases`` at the work ``work`` and the state of ``evaluation``."""
+        self.start_work[cases] = work
+        self.start_forces[cases] = evaluation.forces
+        self.start_tangential[cases] = evaluation.tangential[:, 0]
+
+    def close(
+        self,
+        cases: np.ndarray,
+        stage_index: np.ndarray,
+        turn: np.ndarray,
+        work: np.ndarray,
+        evaluation: Evaluation,
+    ) -> None:
+        """Turn ``turn`` of stage ``stage_index`` closes for ``cases``; the next turn starts."""
+        slot = self.first[stage_index] + turn
+        self.tables["work"][cases, slot] = work - self.start_work[cases]
+        self.tables["force_gap"][cases, slot] = evaluation.forces - self.start_forces[cases]
+        drift = evaluation.tangential[:, 0] - self.start_tangential[cases]
+        self.tables["tangential_drift"][cases, slot] = drift
+        self.start(cases, work, evaluation)
+
+
+@dataclass
+class _AcceptedSteps:
+    """The accepted steps of one pass of the stepper, one row per case.
+
+    Attributes
+    ----------
+    cases
+        ``(A,)`` the rows' case indices in the batch.
+    batch, stage
+        The rows' cases and stage arrays (``stage`` is a copy, changed in place
+        where contacts switch or turns close).
+    y_start, h
+        States at the start of the step and step lengths.
+    y_raw, dop853_stages
+        DOP853 end states before the Newton projection and the stage
+        derivatives ``(stages, A, m)`` (for dense output).
+    y_new
+        States at the end of the step, then at the cut point where a step is cut.
+    dy_new, aux
+        dy/ds and the auxiliary quantities at ``y_new``.
+    """
+
+    cases: np.ndarray
+    batch: CaseBatch
+    stage: StageArrays
+    y_start: np.ndarray
+    h: np.ndarray
+    y_raw: np.ndarray
+    dop853_stages: np.ndarray
+    y_new: np.ndarray
+    dy_new: np.ndarray | None = None
+    aux: _Aux | None = None
+
+    def take(self, rows: np.ndarray) -> _AcceptedSteps:
+        return _AcceptedSteps(
+            self.cases[rows],
+            self.batch.take(rows),
+            self.stage.take(rows),
+            self.y_start[rows],
+            self.h[rows],
+            self.y_raw[rows],
+            self.dop853_stages[:, rows],
+            self.y_new[rows],
+            None if self.dy_new is None else self.dy_new[rows],
+            None if self.aux is None else self.aux.take(rows),
+        )
+
+
+class _BatchStepper:
+    """Arclength continuation of a batch of cases through a loading programme.
+
+    Every running case advances by one DOP853 step per pass (:meth:`step`),
+    all cases as arrays.  Sign changes of the indicators over an accepted step
+    are located; the first crossing that ends the stage, stops the case or
+    switches a contact cuts the step there.  Cases enter their next stage at
+    the target (:meth:`enter`) and end when the programme is done, at a stop
+    event or on a failure.
+
+    Parameters
+    ----------
+    batch, programme, values, options, secondary_contacts, progress
+        As for :func:`follow_cases`.
+
+    Attributes
+    ----------
+    y
+        ``(B, m)`` each case's current state y = (v, lambda, internal, W).
+    derivative
+        ``(B, m)`` dy/ds there (first same as last for the next step).
+    indicators
+        ``(B, columns)`` the event indicators there.
+    stages, stage_index
+        Each case's current stage (:class:`StageArrays`) and its index.
+    status, message
+        Per case: ``running``, then how it ended.
+    step_size, arclength
+        Next step length and arclength s reached.
+    accepted, rejected, located
+        Counters of steps and located events.
+    recorder, events, turns
+        Stored states, first occurrences of events, cycle turns.
+    """
+
+    def __init__(
+        self,
+        batch: CaseBatch,
+        programme: LoadingProgramme,
+        values: dict[str, np.ndarray],
+        options: PathOptions,
+        secondary_contacts: str,
+        progress: Callable[[int], None] | None,
+    ) -> None:
+        self.batch, self.programme, self.values, self.options = batch, programme, values, options
+        self.progress = progress
+        self.size = size = batch.size
+        n = batch.n_dof
+        self.layout = layout = _Layout(n, batch.n_internal)
+        self.dof_names, self.force_names = batch.system.dof_names, batch.system.force_names
+        self.y = np.zeros((size, layout.size))
+        self.y[:, layout.v] = batch.initial_state()
+        self.derivative = np.full((size, layout.size), np.nan)
+        self.stage_index = np.zeros(size, dtype=int)
+        self.status = np.full(size, RUNNING, dtype=object)
+        self.message = np.full(size, "", dtype=object)
+        self.step_size = np.full(size, options.initial_step)
+        self.arclength = np.zeros(size)
+        self.accepted = np.zeros(size, dtype=int)
+        self.rejected = np.zeros(size, dtype=int)
+        self.located = np.zeros(size, dtype=int)
+        self.indicators = np.full((size, len(INDICATOR_EVENTS)), np.nan)
+        self.stages = StageArrays.empty(size, n)
+        self.stages.secondary_state[:] = batch.initial_secondary_state(self.y[:, layout.v])
+        self.recorder = _Recorder(size)
+        self.events = _empty_events(size, n)
+        tables = _event_tables(programme, secondary_contacts)
+        self.event_column, self.stop_table, self.break_columns = tables
+        self.turns = _CycleTurns(programme, size, n)
+
+    def run(self) -> CaseResult:
+        """Follow every case to its end; the result."""
+        self.enter(np.arange(self.size), 0)
+        while self.step():
+            pass
+        steps, counts = self.recorder.assemble()
+        return CaseResult(
+            steps=steps,
+            n_steps=counts,
+            status=self.status.astype(str),
+            message=self.message.astype(str),
+            events=self.events,
+            counters={"accepted": self.accepted, "rejected": self.rejected, "located": self.located},
+            cycles=self.turns.tables,
+        )
+
+    # --- ending cases and storing states ---------------------------------------------------------
+
+    def end(self, index: np.ndarray, state: str, text: str | np.ndarray) -> None:
+        """Cases ``index`` end with status ``state`` and message ``text``."""
+        if index.size:
+            self.status[index] = state
+            self.message[index] = text
+            if self.progress:
+                self.progress(index.size)
+
+    def fail(self, index: np.ndarray, reason: str, text: str | np.ndarray) -> None:
+        """Cases ``index`` fail (status ``failed:<reason>``)."""
+        self.end(index, f"failed:{reason}", text)
+
+    def record(self, index: np.ndarray, y: np.ndarray, aux: _Aux) -> None:
+        """Store the states ``y`` of cases ``index`` (with ``aux`` there)."""
+        ev = aux.evaluation
+        self.recorder.add(
+            index,
+            s=self.arclength[index],
+            stage=self.stage_index[index],
+            u=ev.displacements,
+            lam=y[:, self.layout.lam],
+            internal=y[:, self.layout.internal],
+            work=y[:, self.layout.work],
+            F=ev.forces,
+            l=ev.q[:, 0, 0],
+            alpha=ev.q[:, 0, 1],
+            N=ev.normal[:, 0],
+            T=ev.tangential[:, 0],
+            K=ev.stiffness,
+            du=aux.du,
+            dlam=aux.dlam,
+        )
+
+    # --- stage entry ---------------------------------------------------------------------------
+
+    def enter(self, index: np.ndarray, k: int) -> None:
+        """Cases ``index`` start stage k (zero-length stages cascade to the next).
+
+        Past the last stage the cases finish.  A case that starts a stage it
+        cannot follow fails; the others store their starting state (a case
+        that has just reached the target of stage k - 1 stores the same state
+        a second time, with the new stage index).
+        """
+        while index.size:
+            if k >= len(self.programme):
+                self.end(index, FINISHED, f"finished all {len(self.programme)} loading stage(s)")
+                return
+            go, zero_length = self._set_up_stage(index, k)
+            if go.any() or not self.recorder.started:
+                self._start_stage(index[go])
+            index, k = index[zero_length], k + 1
+
+    def _set_up_stage(self, index: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """Set up stage k for cases ``index`` from their current states (stage arrays, lambda).
+
+        Fails the cases that cannot start it (a held value that is not the
+        current one, a cycle of zero radius, a singular control).  Returns the
+        masks (over ``index``) of the cases that start it and of those for
+        which it has zero length.
+        """
+        stage = self.programme.stages[k]
+        self.stage_index[index] = k
+        v, internal = self.y[index, self.layout.v], self.y[index, self.layout.internal]
+        secondary_state = self.stages.secondary_state[index]
+        evaluation = self.batch.take(index).evaluate(v, internal, secondary_state)
+        u = evaluation.displacements
+        current = {name: u[:, i] for i, name in enumerate(self.dof_names)}
+        current.update({name: evaluation.forces[:, i] for i, name in enumerate(self.force_names)})
+        arrays = StageArrays.empty(index.size, self.batch.n_dof)
+        arrays.secondary_state = secondary_state.copy()
+        if isinstance(stage, Stage):
+            lam, bad, reasons = self._linear_stage(stage, k, index, current, arrays)
+        else:
+            assert isinstance(stage, CycleStage)
+            lam, bad, reasons = self._cycle_stage(stage, k, index, u, arrays)
+        self.y[index, self.layout.lam] = lam
+        zero_length = (arrays.target_sign == 0) & ~bad
+        _, _, dlam, _ = path_tangent(evaluation.du_dv, evaluation.dF_dv, arrays, lam, oriented=False)
+        singular = ~(np.abs(dlam) > 0) & ~bad & ~zero_length
+        reasons[singular] = (
+            f"stage {k + 1}: the control is singular at the stage start (det of the "
+            "force-controlled block of K is 0): the driven quantity cannot start"
+        )
+        bad |= singular
+        arrays.orientation = np.where(np.abs(dlam) > 0, np.sign(dlam), 1.0) * np.where(
+            arrays.target_sign == 0, 1.0, arrays.target_sign
+        )
+        self.stages.put(index, arrays)
+        for reason in np.unique(reasons[bad]):
+            which = index[bad & (reasons == reason)]
+            self.fail(which, "singular_control" if "singular" in reason else "bad_stage_start", reason)
+        return ~bad & ~zero_length, zero_length
+
+    def _linear_stage(
+        self,
+        stage: Stage,
+        k: int,
+        index: np.ndarray,
+        current: dict[str, np.ndarray],
+        arrays: StageArrays,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Fill ``arrays`` for a linear stage: each dof controlled through u_i or F_i.
+
+        Held quantities keep their offset, the driven one has slope 1 in
+        lambda, which starts at the driven quantity's current value.  Returns
+        (lambda at the start, mask of cases that cannot start, reasons).
+        """
+        bad = np.zeros(index.size, dtype=bool)
+        reasons = np.full(index.size, "", dtype=object)
+        controls = stage.controls()
+        driven_name, target = stage.driven
+        for i, (dof, force) in enumerate(zip(self.dof_names, self.force_names)):
+            name = force if force in controls else dof
+            arrays.force_controlled[:, i] = name == force
+            arrays.offset[:, i] = current[name]
+            if name == driven_name:
+                arrays.offset[:, i] = 0.0
+                arrays.slope[:, i] = 1.0
+            elif controls[name] != CURRENT:
+                mismatch = self._held_away(k, name, controls[name], index, current[name], reasons)
+                bad |= mismatch
+        start = current[driven_name]
+        arrays.lam_end = self._resolve(target, index)
+        arrays.target_sign = np.sign(arrays.lam_end - start)
+        return start, bad, reasons
+
+    def _held_away(
+        self,
+        k: int,
+        name: str,
+        held: float | str,
+        index: np.ndarray,
+        value: np.ndarray,
+        reasons: np.ndarray,
+    ) -> np.ndarray:
+        """Mask of the cases whose ``name`` (at ``value``) is not at its held value ``held``.
+
+        Says why in ``reasons``.
+        """
+        nominal = self._resolve(held, index)
+        mismatch = np.abs(nominal - value) > 1e-9 * (1 + np.abs(nominal))
+        hint = np.where(
+            (self.stages.secondary_state[index] & 3) != 0,
+            " (secondary-contact springs already act at this state: with "
+            "secondary_contacts = 'activate' the grains overlap at rest unless "
+            "alpha0 is in [pi/6, pi/3])",
+            "",
+        )
+        text = (
+            f"stage {k + 1} holds {name} = {held} but {name} is not at that "
+            "value when the stage starts; add a stage that drives it there first"
+        )
+        reasons[mismatch] = np.char.add(text, hint[mismatch].astype(str)).astype(object)
+        return mismatch
+
+    def _cycle_stage(
+        self, stage: CycleStage, k: int, index: np.ndarray, u: np.ndarray, arrays: StageArrays
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Fill ``arrays`` for a cycle stage: u on the circle through the current state.
+
+        lambda is the angle turned, from 0 to 2 pi turns.  Returns (lambda at
+        the start, mask of cases that cannot start, reasons).
+        """
+        reasons = np.full(index.size, "", dtype=object)
+        center = np.column_stack([self._resolve(c, index) for c in stage.center])
+        relative = u - center
+        arrays.is_cycle[:] = True
+        arrays.center = center
+        arrays.radius = np.hypot(relative[:, 0], relative[:, 1])
+        arrays.theta0 = np.arctan2(relative[:, 1], relative[:, 0])
+        arrays.turn_direction[:] = stage.direction
+        arrays.lam_end[:] = 2 * math.pi * stage.turns
+        arrays.target_sign[:] = 1.0
+        bad = arrays.radius <= 1e-14
+        reasons[bad] = f"stage {k + 1}: the state is at the centre of the cycle (zero radius)"
+        return np.zeros(index.size), bad, reasons
+
+    def _resolve(self, value: float | str, index: np.ndarray) -> np.ndarray:
+        """A stage value (a number or a parameter name) for cases ``index``."""
+        if isinstance(value, str):
+            if value == CURRENT:
+                raise AssertionError("resolved by caller")
+            named = self.values[value]
+            if np.ndim(named):
+                return np.asarray(named, dtype=float)[index]
+            return np.full(index.size, float(named))
+        return np.full(index.size, float(value))
+
+    def _start_stage(self, index: np.ndarray) -> None:
+        """Cases ``index`` start their (set up) stage: dy/ds, indicators, state stored, turn."""
+        batch, stage, y = self.batch.take(index), self.stages.take(index), self.y[index]
+        dy, aux = _rhs(batch, stage, y, self.layout)
+        self.derivative[index] = dy
+        self.indicators[index] = _indicators(batch, stage, y, aux, self.layout)
+        self.record(index, y, aux)
+        self.turns.start(index, self.y[index, self.layout.work], aux.evaluation)
+
+    # --- one pass of the loop --------------------------------------------------------------------
+
+    def step(self) -> bool:
+        """Advance every running case by one step; False when none is running."""
+        active = np.flatnonzero(self.status == RUNNING)
+        if active.size == 0:
+            return False
+        steps = self._take_steps(active)
+        if steps is not None:
+            steps = self._fail_outside_domain(steps)
+        if steps is not None:
+            self._complete(steps)
+        return True
+
+    def _take_steps(self, active: np.ndarray) -> _AcceptedSteps | None:
+        """One DOP853 step (Newton-projected for total forms) of the cases ``active``.
+
+        Returns the accepted steps (None if none) with dy/ds and the auxiliary
+        quantities at their ends, reusing what the step already evaluated there.
+        """
+        batch = self.batch.take(active) if active.size < self.size else self.batch
+        stage = self.stages.take(active)
+        y0 = self.y[active]
+        h0 = np.minimum(self.step_size[active], self.options.max_step)
+        y1, err, y_raw, dop853_stages, end_aux = _advance(
+            batch, stage, y0, h0, self.layout, self.options, self.derivative[active]
+        )
+        local = np.flatnonzero(self._control_step_size(active, h0, err))
+        if local.size == 0:
+            return None
+        steps = _AcceptedSteps(active, batch, stage, y0, h0, y_raw, dop853_stages, y1)
+        every = local.size == active.size  # no copies then (stage is a copy of self.stages already)
+        if not every:
+            steps = steps.take(local)
+        if isinstance(end_aux, _Aux):  # the last DOP853 stage was evaluated at the end state
+            if every:
+                steps.dy_new, steps.aux = dop853_stages[END_STAGE].copy(), end_aux
+            else:
+                steps.dy_new, steps.aux = dop853_stages[END_STAGE][local], end_aux.take(local)
+        else:  # the Newton projection's last evaluation, where it covers every case
+            known = end_aux if every or end_aux is None else end_aux.take(local)
+            steps.dy_new, steps.aux = _rhs(steps.batch, steps.stage, steps.y_new, self.layout, known)
+        return steps
+
+    def _control_step_size(self, active: np.ndarray, h0: np.ndarray, err: np.ndarray) -> np.ndarray:
+        """Next step sizes from the error norms ``err`` of steps ``h0``; the mask of accepted steps.
+
+        Counts the rejected steps and fails the cases whose step size fell
+        below ``min_step``.
+        """
+        accept = err <= 1.0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            factor = np.where(err == 0, 10.0, np.clip(0.9 * err**ERROR_EXPONENT, 0.2, 10.0))
+        factor = np.where(np.isfinite(err), factor, 0.25)
+        factor = np.where(accept, factor, np.minimum(factor, 0.9))
+        self.step_size[active] = np.clip(h0 * factor, 0.0, self.options.max_step)
+        self.rejected[active[~accept]] += 1
+        underflow = ~accept & (self.step_size[active] < self.options.min_step)
+        self.fail(
+            active[underflow],
+            "step_size_underflow",
+            "the step size fell below min_step: the path cannot be continued "
+            "(non-convergent Newton projection, a kink or a singular point)",
+        )
+        return accept
+
+    def _fail_outside_domain(self, steps: _AcceptedSteps) -> _AcceptedSteps | None:
+        """Fail the cases whose new state left the admissible domain.
+
+        Admissible: finite numbers, l* > 0 and alpha in (-pi/2, pi/2).
+        Returns the other cases' steps (None if none).
+        """
+        q = steps.aux.evaluation.q
+        length, angle = q[:, 0, 0], q[:, 0, 1]
+        finite = np.isfinite(steps.y_new).all(-1) & np.isfinite(steps.aux.evaluation.forces).all(-1)
+        outside = ~finite | ~(length > 0) | ~(np.abs(angle) < math.pi / 2)
+        if outside.any():
+            why = np.where(
+                ~finite,
+                "non-finite numbers",
+                np.where(~(length > 0), "l* <= 0", "alpha outside (-pi/2, pi/2)"),
+            )
+            for reason in np.unique(why[outside]):
+                which = steps.cases[outside & (why == reason)]
+                self.fail(
+                    which,
+                    "left_domain",
+                    f"the path left the admissible domain ({reason}) in stage "
+                    f"{self.stage_index[which[0]] + 1}",
+                )
+        keep = np.flatnonzero(~outside)
+        if keep.size == 0:
+            return None
+        return steps.take(keep) if keep.size < steps.cases.size else steps
+
+    def _complete(self, steps: _AcceptedSteps) -> None:
+        """Locate the steps' crossings, cut the steps, store events and states, end stages."""
+        indicators = _indicators(steps.batch, steps.stage, steps.y_new, steps.aux, self.layout)
+        before = self.indicators[steps.cases]
+        change = np.sign(before) * np.sign(indicators) < 0
+        change[:, TARGET_COLUMN] = (before[:, TARGET_COLUMN] < 0) & (indicators[:, TARGET_COLUMN] >= 0)
+        crossings = _locate_crossings(
+            steps.batch, steps.stage, change, before, indicators, steps.y_start, steps.y_raw,
+            steps.y_new, steps.h, steps.dop853_stages, self.layout, self.options,
+        )
+        self.located[steps.cases] += crossings.located
+        is_cut, cut_column, reach = self._cut_points(steps, change, crossings.sigma)
+        _store_first_events(
+            self.events, self.event_column, steps.cases, crossings, reach + self.options.event_tol,
+            self.arclength, self.stage_index, steps.batch, steps.stage, self.layout,
+        )
+        cut_rows = np.flatnonzero(is_cut)
+        steps.y_new = steps.y_new.copy()
+        if cut_rows.size:
+            self._move_to_cut_points(steps, crossings, cut_rows, cut_column, indicators)
+        self._commit(steps, reach, indicators)
+        self._end_stages(steps.cases, is_cut, cut_column, indicators)
+
+    def _cut_points(
+        self, steps: _AcceptedSteps, change: np.ndarray, sigma: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Where each step is cut: at its first crossing that ends the stage or the case.
+
+        The crossings that cut are those of the target and cycle columns, of
+        stop events and of contact switches.  Returns the mask of the cut
+        steps, the column that cuts each step and the step length kept (to the
+        cut point, else the whole step).
+        """
+        stops = self.stop_table[self.stage_index[steps.cases]]
+        cutting = change & (stops | self.break_columns[None, :])
+        cutting[:, TARGET_COLUMN] = change[:, TARGET_COLUMN]
+        cutting[:, CYCLE_COLUMN] = change[:, CYCLE_COLUMN]
+        cut_sigma = np.where(cutting, sigma, np.inf)
+        cut_column = np.argmin(cut_sigma, axis=1)
+        rows = np.arange(steps.cases.size)
+        is_cut = np.isfinite(cut_sigma[rows, cut_column])
+        reach = np.where(is_cut, cut_sigma[rows, cut_column], steps.h)
+        return is_cut, cut_column, reach
+
+    def _move_to_cut_points(
+        self,
+        steps: _AcceptedSteps,
+        crossings: _Crossings,
+        cut_rows: np.ndarray,
+        cut_column: np.ndarray,
+        indicators: np.ndarray,
+    ) -> None:
+        """The steps ``cut_rows`` end at their located cut points instead (in ``steps``).
+
+        Contacts switch and cycle turns close there; dy/ds, the auxiliary
+        quantities and the ``indicators`` are updated to the cut states.
+        """
+        steps.y_new[cut_rows] = crossings.located_y(cut_rows, cut_column[cut_rows])
+        closing = cut_rows[self.break_columns[cut_column[cut_rows]]]
+        if closing.size:
+            self._switch_contacts_at(steps, closing, cut_column)
+        self._close_turns(steps, cut_rows, cut_column)
+        batch, stage = steps.batch.take(cut_rows), steps.stage.take(cut_rows)
+        dy_cut, aux_cut = _rhs(batch, stage, steps.y_new[cut_rows], self.layout)
+        steps.dy_new[cut_rows] = dy_cut
+        indicators_cut = _indicators(batch, stage, steps.y_new[cut_rows], aux_cut, self.layout)
+        # Keep the post-crossing sign of a break column (secondary contact)
+        # so the same crossing is not detected twice.
+        column_cut = cut_column[cut_rows]
+        brk = np.flatnonzero(self.break_columns[column_cut])
+        indicators_cut[brk, column_cut[brk]] = indicators[cut_rows[brk], column_cut[brk]]
+        indicators[cut_rows] = indicators_cut
+        # Writable copies (fields may be read-only views).
+        steps.aux = steps.aux.take(np.arange(steps.cases.size))
+        steps.aux.put(cut_rows, aux_cut)
+
+    def _switch_contacts_at(
+        self, steps: _AcceptedSteps, closing: np.ndarray, cut_column: np.ndarray
+    ) -> None:
+        """Switch the contact state of rows ``closing``, cut at a break column.
+
+        The direction of motion is kept: the orientation flips where the
+        switch flips the cofactor tangent.
+        """
+        gap = np.asarray(INDICATOR_GAP)[cut_column[closing]]
+        switched = steps.stage.take(closing)
+        steps.y_new[closing], flip = _switch_contacts(
+            steps.batch.take(closing), switched, steps.y_new[closing], gap, self.layout
+        )
+        steps.stage.secondary_state[closing] = switched.secondary_state
+        self.stages.secondary_state[steps.cases[closing]] = switched.secondary_state
+        steps.stage.orientation[closing[flip]] *= -1
+        self.stages.orientation[steps.cases[closing[flip]]] *= -1
+
+    def _close_turns(
+        self, steps: _AcceptedSteps, cut_rows: np.ndarray, cut_column: np.ndarray
+    ) -> None:
+        """Close a turn where a cycle stage's step is cut at its cycle (or target) column.
+
+        Stores the work per contact over the turn (seed Eq. 5), the force gap
+        and the drift of T, and counts the turn.
+        """
+        column_cut = cut_column[cut_rows]
+        turns_here = self.turns.turns[self.stage_index[steps.cases[cut_rows]]]
+        ends_turn = (
+            ((column_cut == CYCLE_COLUMN) | (column_cut == TARGET_COLUMN))
+            & steps.stage.is_cycle[cut_rows]
+            & (steps.stage.cycles_done[cut_rows] < turns_here)
+        )
+        rows = cut_rows[ends_turn]
+        if rows.size == 0:
+            return
+        _, aux = _rhs(steps.batch.take(rows), steps.stage.take(rows), steps.y_new[rows], self.layout)
+        cases = steps.cases[rows]
+        turn = steps.stage.cycles_done[rows]
+        work = steps.y_new[rows, self.layout.work]
+        self.turns.close(cases, self.stage_index[cases], turn, work, aux.evaluation)
+        steps.stage.cycles_done[rows] += 1
+        self.stages.cycles_done[cases] += 1
+
+    def _commit(self, steps: _AcceptedSteps, reach: np.ndarray, indicators: np.ndarray) -> None:
+        """The cases move to ``steps.y_new`` (arclength + ``reach``) and store it."""
+        cases = steps.cases
+        self.y[cases] = steps.y_new
+        self.derivative[cases] = steps.dy_new
+        self.arclength[cases] += reach
+        self.accepted[cases] += 1
+        self.indicators[cases] = indicators
+        self.record(cases, steps.y_new, steps.aux)
+
+    def _end_stages(
+        self, cases: np.ndarray, is_cut: np.ndarray, cut_column: np.ndarray, indicators: np.ndarray
+    ) -> None:
+        """End the stage of ``cases`` at a stop event or its target; fail cases out of steps.
+
+        A case that reached its target enters the next stage (and stores its
+        state there again, see :meth:`enter`).
+        """
+        stops = self.stop_table[self.stage_index[cases], cut_column]
+        stop_hit = is_cut & (cut_column != TARGET_COLUMN) & stops
+        # A cut at (or a rounding error past) the target ends the stage too.
+        at_target = (cut_column == TARGET_COLUMN) | (indicators[:, TARGET_COLUMN] >= 0)
+        target_hit = is_cut & ~stop_hit & at_target
+        for column in np.unique(cut_column[stop_hit]):
+            which = cases[stop_hit & (cut_column == column)]
+            name = INDICATOR_EVENTS[column]
+            number = self.stage_index[which[0]] + 1
+            self.end(which, f"stopped:{name}", f"stopped at {name} in stage {number}")
+        too_many = (self.accepted[cases] >= self.options.max_steps) & ~target_hit & ~stop_hit
+        self.fail(
+            cases[too_many],
+            "max_steps",
+            f"reached max_steps = {self.options.max_steps} accepted steps before the end of the "
+            "programme",
+        )
+        if target_hit.any():
+            finished = cases[target_hit]
+            # Stage indices before any case enters its next stage (enter() updates them).
+            finished_index = self.stage_index[finished].copy()
+            for k in np.unique(finished_index):
+                self.enter(finished[finished_index == k], int(k) + 1)
+
+
 def follow_cases(
     batch: CaseBatch,
     programme: LoadingProgramme,
@@ -590,368 +1272,4 @@ def follow_cases(
     -------
     CaseResult
     """
-    size = batch.size
-    n = batch.n_dof
-    layout = _Layout(n, batch.n_internal)
-    dofs, forces = batch.system.dof_names, batch.system.force_names
-    y = np.zeros((size, layout.size))
-    y[:, layout.v] = batch.initial_state()
-    # dy/ds at each case's current state (first same as last for the next step).
-    derivative = np.full((size, layout.size), np.nan)
-    stage_index = np.zeros(size, dtype=int)
-    status = np.full(size, RUNNING, dtype=object)
-    message = np.full(size, "", dtype=object)
-    step_size = np.full(size, options.initial_step)
-    arclength = np.zeros(size)
-    accepted_count = np.zeros(size, dtype=int)
-    rejected_count = np.zeros(size, dtype=int)
-    located_count = np.zeros(size, dtype=int)
-    previous = np.full((size, len(INDICATOR_EVENTS)), np.nan)
-    stages = StageArrays.empty(size, n)
-    stages.secondary_state[:] = batch.initial_secondary_state(y[:, layout.v])
-    recorder = _Recorder(size)
-    events = _empty_events(size, n)
-
-    event_column = {name: [i for i, e in enumerate(INDICATOR_EVENTS) if e == name] for name in EVENTS}
-    stop_table = np.zeros((len(programme), len(INDICATOR_EVENTS)), dtype=bool)
-    for k, stage in enumerate(programme.stages):
-        for name in stage.stop_at:
-            stop_table[k, event_column[name]] = True
-        if secondary_contacts == "stop":
-            stop_table[k, event_column["secondary_contact"]] = True
-    cycle_turns = np.array([st.turns if isinstance(st, CycleStage) else 0 for st in programme.stages])
-    cycle_offset = np.concatenate([[0], np.cumsum(cycle_turns)])[:-1].astype(int)
-    n_cycles = int(cycle_turns.sum())
-    cycles = {
-        "work": np.full((size, n_cycles), np.nan),
-        "force_gap": np.full((size, n_cycles, n), np.nan),
-        "tangential_drift": np.full((size, n_cycles), np.nan),
-        "stage": np.repeat(np.arange(len(programme)), cycle_turns).astype(int),
-    }
-    cycle_start_work = np.zeros(size)
-    cycle_start_forces = np.zeros((size, n))
-    cycle_start_tangential = np.zeros(size)
-    break_columns = np.zeros(len(INDICATOR_EVENTS), dtype=bool)
-    if secondary_contacts == "activate":
-        break_columns[event_column["secondary_contact"]] = True
-    # A no_tension law's contact opening/closing is a switch of smooth branch.
-    break_columns[INDICATOR_EVENTS.index("normal_contact")] = True
-
-    def fail(index: np.ndarray, reason: str, text: str | np.ndarray) -> None:
-        if index.size:
-            status[index] = f"failed:{reason}"
-            message[index] = text
-            if progress:
-                progress(index.size)
-
-    def end(index: np.ndarray, state: str, text: str | np.ndarray) -> None:
-        if index.size:
-            status[index] = state
-            message[index] = text
-            if progress:
-                progress(index.size)
-
-    def record(index: np.ndarray, yy: np.ndarray, aux: _Aux) -> None:
-        ev = aux.evaluation
-        recorder.add(
-            index,
-            s=arclength[index],
-            stage=stage_index[index],
-            u=ev.displacements,
-            lam=yy[:, layout.lam],
-            internal=yy[:, layout.internal],
-            work=yy[:, layout.work],
-            F=ev.forces,
-            l=ev.q[:, 0, 0],
-            alpha=ev.q[:, 0, 1],
-            N=ev.normal[:, 0],
-            T=ev.tangential[:, 0],
-            K=ev.stiffness,
-            du=aux.du,
-            dlam=aux.dlam,
-        )
-
-    def resolve(value: float | str, index: np.ndarray, current: dict[str, np.ndarray]) -> np.ndarray:
-        if isinstance(value, str):
-            if value == CURRENT:
-                raise AssertionError("resolved by caller")
-            return np.asarray(values[value], dtype=float)[index] if np.ndim(values[value]) else np.full(
-                index.size, float(values[value])
-            )
-        return np.full(index.size, float(value))
-
-    def enter(index: np.ndarray, k: int) -> None:
-        """Cases ``index`` start stage k (vectorized; zero-length stages cascade)."""
-        while index.size:
-            if k >= len(programme):
-                end(index, FINISHED, f"finished all {len(programme)} loading stage(s)")
-                return
-            stage = programme.stages[k]
-            stage_index[index] = k
-            sub = batch.take(index)
-            v, internal = y[index][:, layout.v], y[index][:, layout.internal]
-            evaluation = sub.evaluate(v, internal, stages.secondary_state[index])
-            u = evaluation.displacements
-            current = {name: u[:, i] for i, name in enumerate(dofs)}
-            current.update({name: evaluation.forces[:, i] for i, name in enumerate(forces)})
-            arrays = StageArrays.empty(index.size, n)
-            arrays.secondary_state = stages.secondary_state[index].copy()
-            bad = np.zeros(index.size, dtype=bool)
-            reasons = np.full(index.size, "", dtype=object)
-            if isinstance(stage, Stage):
-                controls = stage.controls()
-                driven_name, target = stage.driven
-                for i, (dof, force) in enumerate(zip(dofs, forces)):
-                    name = force if force in controls else dof
-                    arrays.force_controlled[:, i] = name == force
-                    arrays.offset[:, i] = current[name]
-                    if name == driven_name:
-                        arrays.offset[:, i] = 0.0
-                        arrays.slope[:, i] = 1.0
-                    elif controls[name] != CURRENT:
-                        nominal = resolve(controls[name], index, current)
-                        mismatch = np.abs(nominal - current[name]) > 1e-9 * (1 + np.abs(nominal))
-                        hint = np.where(
-                            (stages.secondary_state[index] & 3) != 0,
-                            " (secondary-contact springs already act at this state: with "
-                            "secondary_contacts = 'activate' the grains overlap at rest unless "
-                            "alpha0 is in [pi/6, pi/3])",
-                            "",
-                        )
-                        text = (
-                            f"stage {k + 1} holds {name} = {controls[name]} but {name} is not at that "
-                            "value when the stage starts; add a stage that drives it there first"
-                        )
-                        reasons[mismatch] = np.char.add(text, hint[mismatch].astype(str)).astype(object)
-                        bad |= mismatch
-                start = current[driven_name]
-                arrays.lam_end = resolve(target, index, current)
-                arrays.target_sign = np.sign(arrays.lam_end - start)
-                lam = start
-            else:
-                assert isinstance(stage, CycleStage)
-                center = np.column_stack([resolve(c, index, current) for c in stage.center])
-                relative = u - center
-                arrays.is_cycle[:] = True
-                arrays.center = center
-                arrays.radius = np.hypot(relative[:, 0], relative[:, 1])
-                arrays.theta0 = np.arctan2(relative[:, 1], relative[:, 0])
-                arrays.turn_direction[:] = stage.direction
-                arrays.lam_end[:] = 2 * math.pi * stage.turns
-                arrays.target_sign[:] = 1.0
-                lam = np.zeros(index.size)
-                zero = arrays.radius <= 1e-14
-                reasons[zero] = f"stage {k + 1}: the state is at the centre of the cycle (zero radius)"
-                bad |= zero
-            y[index, layout.lam] = lam
-            zero_length = (arrays.target_sign == 0) & ~bad
-            _, _, dlam, _ = path_tangent(evaluation.du_dv, evaluation.dF_dv, arrays, lam, oriented=False)
-            singular = ~(np.abs(dlam) > 0) & ~bad & ~zero_length
-            reasons[singular] = (
-                f"stage {k + 1}: the control is singular at the stage start (det of the "
-                "force-controlled block of K is 0): the driven quantity cannot start"
-            )
-            bad |= singular
-            arrays.orientation = np.where(np.abs(dlam) > 0, np.sign(dlam), 1.0) * np.where(
-                arrays.target_sign == 0, 1.0, arrays.target_sign
-            )
-            stages.put(index, arrays)
-            for reason in np.unique(reasons[bad]):
-                which = index[bad & (reasons == reason)]
-                fail(which, "singular_control" if "singular" in reason else "bad_stage_start", reason)
-            go = ~bad & ~zero_length
-            if go.any() or not recorder.started:
-                gi = index[go]
-                sub_go = batch.take(gi)
-                st_go = stages.take(gi)
-                dy, aux = _rhs(sub_go, st_go, y[gi], layout)
-                derivative[gi] = dy
-                previous[gi] = _indicators(sub_go, st_go, y[gi], aux, layout)
-                record(gi, y[gi], aux)
-                cycle_start_work[gi] = y[gi, layout.work]
-                cycle_start_forces[gi] = aux.evaluation.forces
-                cycle_start_tangential[gi] = aux.evaluation.tangential[:, 0]
-            index, k = index[zero_length], k + 1
-
-    enter(np.arange(size), 0)
-
-    while True:
-        active = np.flatnonzero(status == RUNNING)
-        if active.size == 0:
-            break
-        sub = batch.take(active) if active.size < size else batch
-        st = stages.take(active)
-        y0 = y[active]
-        h0 = np.minimum(step_size[active], options.max_step)
-        y1, err, y_raw, stages_k, end_aux = _advance(sub, st, y0, h0, layout, options, derivative[active])
-        accept = err <= 1.0
-        with np.errstate(divide="ignore", invalid="ignore"):
-            factor = np.where(err == 0, 10.0, np.clip(0.9 * err**ERROR_EXPONENT, 0.2, 10.0))
-        factor = np.where(np.isfinite(err), factor, 0.25)
-        factor = np.where(accept, factor, np.minimum(factor, 0.9))
-        step_size[active] = np.clip(h0 * factor, 0.0, options.max_step)
-        rejected_count[active[~accept]] += 1
-        underflow = ~accept & (step_size[active] < options.min_step)
-        fail(
-            active[underflow],
-            "step_size_underflow",
-            "the step size fell below min_step: the path cannot be continued "
-            "(non-convergent Newton projection, a kink or a singular point)",
-        )
-        local = np.flatnonzero(accept)
-        if local.size == 0:
-            continue
-        cases = active[local]
-        if local.size == active.size:  # every step accepted: no copies (st is a copy of stages already)
-            sub_a, st_a, y_start, h_a, y_new, y_raw_a, stages_a = sub, st, y0, h0, y1, y_raw, stages_k
-            if isinstance(end_aux, _Aux):
-                dy_new, aux = stages_k[END_STAGE].copy(), end_aux
-            else:
-                dy_new, aux = _rhs(sub_a, st_a, y_new, layout, end_aux)
-        else:
-            sub_a = sub.take(local)
-            st_a = st.take(local)
-            y_start = y0[local]
-            h_a = h0[local]
-            y_new = y1[local]
-            y_raw_a = y_raw[local]
-            stages_a = stages_k[:, local]
-            if isinstance(end_aux, _Aux):  # the last DOP853 stage was evaluated at the end state
-                dy_new, aux = stages_k[END_STAGE][local], end_aux.take(local)
-            else:  # the Newton projection's last evaluation, where it covers every case
-                dy_new, aux = _rhs(sub_a, st_a, y_new, layout, None if end_aux is None else end_aux.take(local))
-        q = aux.evaluation.q
-        length, angle = q[:, 0, 0], q[:, 0, 1]
-        finite = np.isfinite(y_new).all(-1) & np.isfinite(aux.evaluation.forces).all(-1)
-        outside = ~finite | ~(length > 0) | ~(np.abs(angle) < math.pi / 2)
-        if outside.any():
-            why = np.where(
-                ~finite,
-                "non-finite numbers",
-                np.where(~(length > 0), "l* <= 0", "alpha outside (-pi/2, pi/2)"),
-            )
-            for reason in np.unique(why[outside]):
-                which = outside & (why == reason)
-                fail(
-                    cases[which],
-                    "left_domain",
-                    f"the path left the admissible domain ({reason}) in stage "
-                    f"{stage_index[cases[which][0]] + 1}",
-                )
-        keep = np.flatnonzero(~outside)
-        if keep.size == 0:
-            continue
-        if keep.size < cases.size:
-            cases, sub_a, st_a = cases[keep], sub_a.take(keep), st_a.take(keep)
-            y_start, h_a, y_new = y_start[keep], h_a[keep], y_new[keep]
-            y_raw_a, stages_a = y_raw_a[keep], stages_a[:, keep]
-            aux = aux.take(keep)
-            dy_new = dy_new[keep]
-        indicators = _indicators(sub_a, st_a, y_new, aux, layout)
-        before = previous[cases]
-        change = np.sign(before) * np.sign(indicators) < 0
-        change[:, TARGET_COLUMN] = (before[:, TARGET_COLUMN] < 0) & (indicators[:, TARGET_COLUMN] >= 0)
-
-        crossings = _locate_crossings(
-            sub_a, st_a, change, before, indicators, y_start, y_raw_a, y_new, h_a, stages_a, layout, options
-        )
-        sigma = crossings.sigma
-        located_count[cases] += crossings.located
-
-        cutting = change & (stop_table[stage_index[cases]] | break_columns[None, :])
-        cutting[:, TARGET_COLUMN] = change[:, TARGET_COLUMN]
-        cutting[:, CYCLE_COLUMN] = change[:, CYCLE_COLUMN]
-        cut_sigma = np.where(cutting, sigma, np.inf)
-        cut_column = np.argmin(cut_sigma, axis=1)
-        is_cut = np.isfinite(cut_sigma[np.arange(cases.size), cut_column])
-        reach = np.where(is_cut, cut_sigma[np.arange(cases.size), cut_column], h_a)
-
-        _store_first_events(
-            events, event_column, cases, crossings, reach + options.event_tol, arclength, stage_index,
-            sub_a, st_a, layout,
-        )
-
-        # Advance: to the step end, or to the located cut point.
-        cut_rows = np.flatnonzero(is_cut)
-        y_new = y_new.copy()
-        if cut_rows.size:
-            y_new[cut_rows] = crossings.located_y(cut_rows, cut_column[cut_rows])
-            closing = cut_rows[break_columns[cut_column[cut_rows]]]
-            if closing.size:
-                gap = np.asarray(INDICATOR_GAP)[cut_column[closing]]
-                switched = st_a.take(closing)
-                y_new[closing], flip = _switch_contacts(sub_a.take(closing), switched, y_new[closing], gap, layout)
-                st_a.secondary_state[closing] = switched.secondary_state
-                stages.secondary_state[cases[closing]] = switched.secondary_state
-                st_a.orientation[closing[flip]] *= -1
-                stages.orientation[cases[closing[flip]]] *= -1
-            column_cut = cut_column[cut_rows]
-            turns_here = cycle_turns[stage_index[cases[cut_rows]]]
-            ends_cycle = (
-                ((column_cut == CYCLE_COLUMN) | (column_cut == TARGET_COLUMN))
-                & st_a.is_cycle[cut_rows]
-                & (st_a.cycles_done[cut_rows] < turns_here)
-            )
-            cyc = cut_rows[ends_cycle]
-            if cyc.size:
-                # One turn of a cycle stage closed: work, force gap, T drift.
-                _, ax_cyc = _rhs(sub_a.take(cyc), st_a.take(cyc), y_new[cyc], layout)
-                where = cases[cyc]
-                slot = cycle_offset[stage_index[where]] + st_a.cycles_done[cyc]
-                cycles["work"][where, slot] = y_new[cyc, layout.work] - cycle_start_work[where]
-                cycles["force_gap"][where, slot] = ax_cyc.evaluation.forces - cycle_start_forces[where]
-                cycles["tangential_drift"][where, slot] = ax_cyc.evaluation.tangential[:, 0] - cycle_start_tangential[where]
-                cycle_start_work[where] = y_new[cyc, layout.work]
-                cycle_start_forces[where] = ax_cyc.evaluation.forces
-                cycle_start_tangential[where] = ax_cyc.evaluation.tangential[:, 0]
-                st_a.cycles_done[cyc] += 1
-                stages.cycles_done[where] += 1
-            b, s_ = sub_a.take(cut_rows), st_a.take(cut_rows)
-            dy_cut, ax_cut = _rhs(b, s_, y_new[cut_rows], layout)
-            dy_new[cut_rows] = dy_cut
-            ind_cut = _indicators(b, s_, y_new[cut_rows], ax_cut, layout)
-            # Keep the post-crossing sign of a break column (secondary contact)
-            # so the same crossing is not detected twice.
-            brk = np.flatnonzero(break_columns[column_cut])
-            ind_cut[brk, column_cut[brk]] = indicators[cut_rows[brk], column_cut[brk]]
-            indicators[cut_rows] = ind_cut
-            aux = aux.take(np.arange(cases.size))  # writable copies (fields may be read-only views)
-            aux.put(cut_rows, ax_cut)
-        y[cases] = y_new
-        derivative[cases] = dy_new
-        arclength[cases] += reach
-        accepted_count[cases] += 1
-        previous[cases] = indicators
-        record(cases, y_new, aux)
-
-        # Stage ends: target reached, or a stop event.
-        stop_hit = is_cut & (cut_column != TARGET_COLUMN) & stop_table[stage_index[cases], cut_column]
-        # A cut at (or a rounding error past) the target ends the stage too.
-        target_hit = is_cut & ~stop_hit & ((cut_column == TARGET_COLUMN) | (indicators[:, TARGET_COLUMN] >= 0))
-        for column in np.unique(cut_column[stop_hit]):
-            which = cases[stop_hit & (cut_column == column)]
-            name = INDICATOR_EVENTS[column]
-            end(which, f"stopped:{name}", f"stopped at {name} in stage {stage_index[which[0]] + 1}")
-        too_many = (accepted_count[cases] >= options.max_steps) & ~target_hit & ~stop_hit
-        fail(
-            cases[too_many],
-            "max_steps",
-            f"reached max_steps = {options.max_steps} accepted steps before the end of the programme",
-        )
-        if target_hit.any():
-            finished_stage = cases[target_hit]
-            # Stage indices before any case enters its next stage (enter() updates them).
-            finished_index = stage_index[finished_stage].copy()
-            for k in np.unique(finished_index):
-                enter(finished_stage[finished_index == k], int(k) + 1)
-
-    steps, counts = recorder.assemble()
-    return CaseResult(
-        steps=steps,
-        n_steps=counts,
-        status=status.astype(str),
-        message=message.astype(str),
-        events=events,
-        counters={"accepted": accepted_count, "rejected": rejected_count, "located": located_count},
-        cycles=cycles,
-    )
+    return _BatchStepper(batch, programme, values, options, secondary_contacts, progress).run()
