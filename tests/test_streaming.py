@@ -26,6 +26,7 @@ from ncstab.paths import ParameterGrid
 from ncstab.studies import open_study, parse_study, run_study, run_study_chunked, write_dataset
 from ncstab.studies.archive import COMPRESSION
 from ncstab.studies.chunked import run_chunk
+from ncstab.studies import streaming
 from ncstab.studies.streaming import ArchiveStream, BlockLayout, encode_chunk
 
 PREAMBLE = """
@@ -202,6 +203,23 @@ def test_a_last_block_shorter_than_the_others_is_written_whole(tmp_path):
     run_study_chunked(study, output, chunk_cases=2)
     with netCDF4.Dataset(output) as nc:
         assert nc.variables["u"].chunking()[:2] == [1, 2]
+    xr.testing.assert_identical(_without_time_stamp(open_study(output)), _without_time_stamp(_reference(study, tmp_path)))
+
+
+def test_hdf5_chunks_that_split_steps_and_trailing_dimensions_read_back_whole(tmp_path, monkeypatch):
+    """With HDF5 chunks of about 6 elements, ``step``, ``theta`` (8 values) and
+    ``map_D2`` (4 values) are cut into windows of 3, the last one short: the
+    encoder pads it, the archive holds exactly the values."""
+    monkeypatch.setattr(streaming, "CHUNK_ELEMENTS", 6)
+    study = parse_study(STUDIES["maps"])
+    output = tmp_path / "maps.nc"
+    run_study_chunked(study, output, chunk_cases=3)
+    with netCDF4.Dataset(output) as nc:
+        def chunking(name):
+            return dict(zip(nc.variables[name].dimensions, nc.variables[name].chunking()))
+
+        assert chunking("d2W_dir")["theta"] == 3 and chunking("map_hill")["map_D2"] == 3
+        assert chunking("hill")["step"] == 3
     xr.testing.assert_identical(_without_time_stamp(open_study(output)), _without_time_stamp(_reference(study, tmp_path)))
 
 
