@@ -251,15 +251,15 @@ def test_a_chunk_of_the_wrong_size_is_refused(tmp_path):
     chunk = run_chunk(study, "weakly_hypoelastic", 0, 3)
     stream, sweep = _stream(study, tmp_path / "a.nc")
     with pytest.raises(ValueError, match=r"a chunk of cases 0:4 needs dimensions law = 1 and case = 4"):
-        encode_chunk(chunk, "weakly_hypoelastic", 0, 0, 4, stream.layout, sweep)
+        encode_chunk(chunk, "weakly_hypoelastic", 0, 4, stream.layout, sweep)
     with pytest.raises(ValueError, match=r"cases 0:3 do not end on a block of 4 cases"):
-        encode_chunk(chunk, "weakly_hypoelastic", 0, 0, 3, stream.layout, sweep)
+        encode_chunk(chunk, "weakly_hypoelastic", 0, 3, stream.layout, sweep)
 
 
 def test_closing_before_every_law_is_in_is_refused(tmp_path):
     study = parse_study(STUDIES["maps"])
     stream, sweep = _stream(study, tmp_path / "a.nc")
-    stream.append(encode_chunk(run_chunk(study, "mcnamara", 0, 4), "mcnamara", 1, 0, 4, stream.layout, sweep))
+    stream.append(encode_chunk(run_chunk(study, "mcnamara", 0, 4), "mcnamara", 0, 4, stream.layout, sweep))
     with pytest.raises(ValueError, match="no chunk of law.s. weakly_hypoelastic was appended"):
         stream.close()
     stream.abort()

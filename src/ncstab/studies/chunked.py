@@ -304,7 +304,6 @@ def _write_part(directory: FilePath, chunk: Chunk, digest: str, encoded: Encoded
         "start": encoded.start,
         "stop": encoded.stop,
         "steps": encoded.steps,
-        "law_class": encoded.law_class,
         "chunks": [[name, list(offset), len(data)] for name, offset, data in encoded.chunks],
         "strings": list(encoded.strings),
         "attrs": {k: _json_attribute(v) for k, v in template.attrs.items()},
@@ -358,7 +357,7 @@ def _read_part(directory: FilePath, chunk: Chunk, digest: str) -> EncodedChunk:
         position += length
     return EncodedChunk(
         law=header["law"], start=header["start"], stop=header["stop"], steps=header["steps"],
-        law_class=header["law_class"], template=xr.Dataset(data, coords=coordinates, attrs=attrs),
+        template=xr.Dataset(data, coords=coordinates, attrs=attrs),
         chunks=chunks, strings=strings,
     )
 
@@ -366,7 +365,7 @@ def _read_part(directory: FilePath, chunk: Chunk, digest: str) -> EncodedChunk:
 def encode_study_chunk(study: Study, chunk: Chunk, layout: BlockLayout, dataset: "xr.Dataset") -> EncodedChunk:
     """A chunk's Dataset (:func:`run_chunk`) compressed into the archive's HDF5 chunks."""
     sweep = tuple(ParameterGrid.from_mapping(study.parameters).sweep)
-    return encode_chunk(dataset, chunk.law, list(study.laws).index(chunk.law), chunk.start, chunk.stop, layout, sweep)
+    return encode_chunk(dataset, chunk.law, chunk.start, chunk.stop, layout, sweep)
 
 
 def compute_part(

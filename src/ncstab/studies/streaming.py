@@ -209,15 +209,14 @@ class EncodedChunk:
         The law and the flat cases ``start:stop``.
     steps
         Length of the chunk's ``step`` dimension (its longest case).
-    law_class
-        The law's class (the ``law_class`` coordinate).
     template
         The chunk's Dataset without its cases (``case`` of size 0): the
         variables, their dimensions, attributes and the values of those
         without a ``case`` dimension.
     chunks
         ``(variable, chunk offset, compressed bytes)`` of every HDF5 chunk of
-        the numeric variables (:func:`deflate_shuffled`).
+        the numeric variables (:func:`deflate_shuffled`); the offset is in the
+        dimensions after ``law`` (the archive puts the law's index first).
     strings
         The other variables with a ``case`` dimension (text), as arrays of the
         chunk's cases.
@@ -227,7 +226,6 @@ class EncodedChunk:
     start: int
     stop: int
     steps: int
-    law_class: str
     template: "xr.Dataset"
     chunks: list[tuple[str, tuple[int, ...], bytes]] = field(default_factory=list)
     strings: dict[str, np.ndarray] = field(default_factory=dict)
@@ -245,8 +243,7 @@ def _full_dims(dims: tuple[str, ...], sweep: tuple[str, ...]) -> tuple[str, ...]
 
 
 def encode_chunk(
-    dataset: "xr.Dataset", law: str, law_index: int, start: int, stop: int, layout: BlockLayout,
-    sweep: tuple[str, ...],
+    dataset: "xr.Dataset", law: str, start: int, stop: int, layout: BlockLayout, sweep: tuple[str, ...]
 ) -> EncodedChunk:
     """Compress a chunk's Dataset into the archive's HDF5 chunks (blocks of ``layout``).
 
@@ -256,8 +253,8 @@ def encode_chunk(
         The chunk's Dataset (:func:`~ncstab.studies.chunked.run_chunk`): ``law``
         of size 1 and ``case`` (``stop - start`` cases) in place of the swept
         parameters ``sweep``.
-    law, law_index
-        The law and its place in the study's laws.
+    law
+        The chunk's law.
     start, stop
         The chunk's flat cases: a run of whole blocks of ``layout``.
     """
@@ -270,8 +267,7 @@ def encode_chunk(
     steps = int(dataset.sizes.get("step", 0))
     sizes = dict(dataset.sizes)
     encoded = EncodedChunk(
-        law=law, start=start, stop=stop, steps=steps, law_class=str(dataset["law_class"].values[0]),
-        template=dataset.isel({CASE_DIMENSION: slice(0, 0)}),
+        law=law, start=start, stop=stop, steps=steps, template=dataset.isel({CASE_DIMENSION: slice(0, 0)}),
     )
     for name, variable in dataset.variables.items():
         if CASE_DIMENSION not in variable.dims or name == CASE_DIMENSION:
@@ -294,7 +290,7 @@ def encode_chunk(
             for position in itertools.product(*(range(k) for k in counts)):
                 window = tuple(slice(p * c, (p + 1) * c) for p, c in zip(position, rest_chunk))
                 piece = padded[(Ellipsis, *window)] if window else padded
-                offset = (law_index, *block.origin, *(p * c for p, c in zip(position, rest_chunk)))
+                offset = (*block.origin, *(p * c for p, c in zip(position, rest_chunk)))
                 encoded.chunks.append((str(name), offset, deflate_shuffled(piece[np.newaxis])))
     return encoded
 
@@ -433,13 +429,13 @@ class ArchiveStream:
         k = self.laws.index(encoded.law)
         self._extend_steps(encoded.steps)
         for name, offset, data in encoded.chunks:
-            self._file[name].id.write_direct_chunk(offset, data)
+            self._file[name].id.write_direct_chunk((k, *offset), data)
         for name, values in encoded.strings.items():
             for block in blocks:
                 box = tuple(slice(o, o + n) for o, n in zip(block.origin, block.shape))
                 target = values[block.start - encoded.start : block.stop - encoded.start]
                 self._file[name][(slice(k, k + 1), *box)] = target.reshape((1, *block.shape, *values.shape[1:])).astype(object)
-        self._classes[encoded.law] = encoded.law_class
+        self._classes[encoded.law] = str(encoded.template["law_class"].values[0])
         self._written.append((k, encoded.start, encoded.stop, encoded.steps))
 
     def _pad_integers(self) -> None:
