@@ -94,7 +94,7 @@ class CaseRange:
     A chunk of a large sweep (:mod:`ncstab.studies.chunked`) is followed and
     turned into a Dataset on its own; its swept parameters become one ``case``
     dimension (flat index into the whole grid, C order) so that the chunk's
-    Dataset can be written into the whole archive's hyperslab.  It offers what
+    Dataset can be cut into the whole archive's blocks (:mod:`ncstab.studies.streaming`).  It offers what
     :class:`ncstab.paths.Path` uses of a grid: ``sweep``, ``fixed``, ``shape``,
     ``size`` and ``case_values()``.
     """
