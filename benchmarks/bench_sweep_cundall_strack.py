@@ -9,6 +9,13 @@ by hand with scalar math, which is the fastest plain-Python form of the loop.
 
 Run:  python benchmarks/bench_sweep_cundall_strack.py [--cases-per-side 64] [--repeat 3]
 
+The engine runs twice: with the default numpy stepper (every case advances
+in numpy passes over the batch) and with the compiled stepper
+(``PathOptions(backend="compiled")``, numba, one compiled loop per case,
+the same steps; needs ``pip install 'ncstab[compiled]'``).  Its compilation
+(once per law and process) happens before the timed runs and is reported
+apart.
+
 Prints the times (the median of ``--repeat`` runs of each method, taken in
 turn in the same process), the ratios of those medians, and the accuracy of each.  The engine also
 locates every event (the secondary-contact gaps reach zero in many cases);
@@ -22,6 +29,7 @@ import argparse
 import math
 import statistics
 import time
+from dataclasses import replace
 
 import numpy as np
 from scipy.integrate import solve_ivp
@@ -107,35 +115,52 @@ def main() -> None:
 
     ncstab.follow(SystemSpec(secondary_contacts="ignore"), "cundall_strack",
                   [{"hold": {"F2": 0.0}, "drive": {"D1": 0.01}}], {"gamma": 1.0})  # compile once (sympy)
-
     options = PathOptions(rtol=1e-10, atol=1e-12, max_step=1.0)
+    compiled = replace(options, backend="compiled")
+    start = time.perf_counter()
+    run_engine(gamma[:1], alpha0[:1], compiled)  # compile once (numba)
+    compile_time = time.perf_counter() - start
+
     baseline_rtol, baseline_atol = 1e-10, 1e-12
-    times: dict[str, list[float]] = {"engine": [], "baseline": [], "baseline_events": []}
+    times: dict[str, list[float]] = {"engine": [], "compiled": [], "baseline": [], "baseline_events": []}
     for _ in range(args.repeat):  # interleaved, so a slow spell of the machine hits every method
         start = time.perf_counter()
         engine, path = run_engine(gamma, alpha0, options)
         times["engine"].append(time.perf_counter() - start)
+        start = time.perf_counter()
+        fast, fast_path = run_engine(gamma, alpha0, compiled)
+        times["compiled"].append(time.perf_counter() - start)
         start = time.perf_counter()
         baseline = run_baseline(gg, aa, baseline_rtol, baseline_atol)
         times["baseline"].append(time.perf_counter() - start)
         start = time.perf_counter()
         run_baseline(gg, aa, baseline_rtol, baseline_atol, events=True)
         times["baseline_events"].append(time.perf_counter() - start)
-    engine_time, baseline_time, baseline_events_time = (statistics.median(times[k]) for k in times)
+    engine_time, compiled_time, baseline_time, baseline_events_time = (statistics.median(times[k]) for k in times)
 
     rng = np.random.default_rng(0)
     subset = rng.choice(n, size=min(args.check, n), replace=False)
     reference = run_baseline(gg[subset], aa[subset], 1e-13, 1e-14)
     engine_error = np.abs(engine[subset] - reference).max()
+    compiled_error = np.abs(fast[subset] - reference).max()
+    same = np.array_equal(path.status, fast_path.status) and np.array_equal(
+        path.results[0].n_steps, fast_path.results[0].n_steps
+    )
+    gap = np.abs(engine - fast).max()
     baseline_error = np.abs(baseline[subset] - reference).max()
     statuses = dict(zip(*np.unique(path.status, return_counts=True)))
 
     print(f"cases                      {n}   (median of {args.repeat} run(s) of each method)")
-    print(f"engine  (batched, events)  {engine_time:8.3f} s   max error {engine_error:.2e}   statuses {statuses}")
+    print(f"engine, numpy stepper      {engine_time:8.3f} s   max error {engine_error:.2e}   statuses {statuses}")
+    print(f"engine, compiled stepper   {compiled_time:8.3f} s   max error {compiled_error:.2e}   "
+          f"(numba compilation before: {compile_time:.1f} s)")
+    print(f"  compiled vs numpy: same statuses and steps per case: {same}; largest difference "
+          f"of (D2, F1) at the end {gap:.1e}")
     print(f"baseline (solve_ivp loop)  {baseline_time:8.3f} s   max error {baseline_error:.2e}")
     print(f"baseline with the same events located  {baseline_events_time:8.3f} s")
-    print(f"ratio baseline / engine    {baseline_time / engine_time:8.1f} x (no events in the baseline)")
-    print(f"ratio baseline+events / engine {baseline_events_time / engine_time:8.1f} x (same job)")
+    for name, value in (("numpy", engine_time), ("compiled", compiled_time)):
+        print(f"ratio baseline / engine ({name:8s})        {baseline_time / value:8.1f} x (no events in the baseline)")
+        print(f"ratio baseline+events / engine ({name:8s}) {baseline_events_time / value:8.1f} x (same job)")
     located = int(path.results[0].counters["located"].sum())
     print(f"events located by the engine (the baseline locates none): {located}")
 

@@ -113,6 +113,19 @@ def test_a_chunked_run_writes_the_in_process_archive(study, reference, tmp_path)
     assert_same_archive(output, reference)
 
 
+def test_a_chunked_run_of_the_compiled_backend_writes_its_in_process_archive(tmp_path):
+    """The compiled stepper's cases do not depend on their batch either."""
+    pytest.importorskip("numba")
+    study = parse_study(STUDY_TEXT.replace("max_step = 0.05", 'max_step = 0.05\nbackend = "compiled"'))
+    assert study.options.backend == "compiled"
+    reference_path = tmp_path / "reference" / "chunks.nc"
+    reference_path.parent.mkdir()
+    write_dataset(run_study(study), reference_path)
+    output = tmp_path / "out" / "chunks.nc"
+    run_study_chunked(study, output, chunk_cases=CHUNK_CASES)
+    assert_same_archive(output, open_study(reference_path))
+
+
 def test_a_killed_run_keeps_its_chunks_and_resume_computes_only_the_rest(
     study, reference, tmp_path, monkeypatch
 ):

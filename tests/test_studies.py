@@ -471,4 +471,7 @@ def test_the_guide_lists_every_option_with_its_default():
     for field in dataclasses.fields(PathOptions):
         row = re.search(rf"^\| `{field.name}` \| [^|]+ \| `([^`]+)` \|", text, re.MULTILINE)
         assert row, field.name
-        assert float(row.group(1)) == field.default, field.name
+        if isinstance(field.default, str):
+            assert row.group(1) == f'"{field.default}"', field.name
+        else:
+            assert float(row.group(1)) == field.default, field.name

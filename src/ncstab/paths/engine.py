@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from dataclasses import fields as dataclass_fields
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
@@ -35,16 +35,21 @@ from ncstab.paths.events import (
     indicator_values,
     locate_sign_changes,
 )
-from ncstab.paths.integrator import END_STAGE, ERROR_EXPONENT, dense_output, dop853_step, evaluate_dense
+from ncstab.paths.integrator import END_STAGE, dense_output, dop853_step, evaluate_dense, step_factor
 from ncstab.paths.model import CaseBatch, Evaluation
 from ncstab.paths.options import PathOptions
 from ncstab.paths.programme import CURRENT, EVENTS, CycleStage, LoadingProgramme, Stage
 from ncstab.paths.tangent_field import StageArrays, control_matrix, path_tangent
 
+if TYPE_CHECKING:
+    from ncstab.paths.compiled_stages import CompiledStages
+
 __all__ = ["CaseResult", "follow_cases"]
 
 RUNNING = "running"
 FINISHED = "finished"
+#: Why a state is outside the admissible domain (checked in this order).
+DOMAIN_REASONS = ("non-finite numbers", "l* <= 0", "alpha outside (-pi/2, pi/2)")
 
 
 @dataclass
@@ -300,18 +305,42 @@ class _Recorder:
                 key: self._blank((self.size, self.capacity) + value.shape[1:], value.dtype)
                 for key, value in values.items()
             }
-        elif needed > self.capacity:
+        else:
+            self._grow(needed)
+        self._scatter(case * self.capacity + position, values)
+        self.count[case] += 1
+
+    def create(self, fields: dict[str, tuple[tuple[int, ...], np.dtype]]) -> None:
+        """Create the arrays (if not yet) for ``fields``: name -> (shape after the case
+        and step axes, dtype), for a writer that fills them itself."""
+        if self.arrays is None:
+            self.capacity = 16
+            self.arrays = {
+                key: self._blank((self.size, self.capacity) + shape, dtype) for key, (shape, dtype) in fields.items()
+            }
+
+    def reserve(self, needed: int) -> None:
+        """Room for ``needed`` states per case (for a writer that fills the
+        arrays and ``count`` itself, :mod:`ncstab.paths.compiled`)."""
+        self._grow(needed)
+
+    def _grow(self, needed: int) -> None:
+        """Room for ``needed`` states per case (the capacity at least doubles)."""
+        assert self.arrays is not None
+        if needed > self.capacity:
             capacity = max(needed, 2 * self.capacity)
             for key, array in self.arrays.items():
                 grown = self._blank((self.size, capacity) + array.shape[2:], array.dtype)
                 grown[:, : self.capacity] = array
                 self.arrays[key] = grown
             self.capacity = capacity
-        flat = case * self.capacity + position  # one 1-D index for every field
+
+    def _scatter(self, flat: np.ndarray, values: dict[str, np.ndarray]) -> None:
+        """Write ``values`` at the flat (case * capacity + position) indices ``flat``."""
+        assert self.arrays is not None
         for key, value in values.items():
             array = self.arrays[key]
             array.reshape((self.size * self.capacity,) + array.shape[2:])[flat] = value
-        self.count[case] += 1
 
     @property
     def started(self) -> bool:
@@ -769,10 +798,13 @@ class _BatchStepper:
         tables = _event_tables(programme, secondary_contacts)
         self.event_column, self.stop_table, self.break_columns = tables
         self.turns = _CycleTurns(programme, size, n)
+        self.compiled = _compiled_stepper(batch, programme, options, secondary_contacts)
 
     def run(self) -> CaseResult:
         """Follow every case to its end; the result."""
         self.enter(np.arange(self.size), 0)
+        if self.compiled is not None:
+            self.compiled.run(self)
         while self.step():
             pass
         steps, counts = self.recorder.assemble()
@@ -820,6 +852,15 @@ class _BatchStepper:
             du=aux.du,
             dlam=aux.dlam,
         )
+
+    def record_fields(self) -> dict[str, tuple[tuple[int, ...], np.dtype]]:
+        """Shape (after the case and step axes) and dtype of each stored field."""
+        n, floating = self.batch.n_dof, np.dtype(float)
+        shapes = {"u": (n,), "internal": (self.layout.n_internal,), "F": (n,), "K": (n, n), "du": (n,)}
+        fields = {}
+        for name in ("s", "stage", "u", "lam", "internal", "work", "F", "l", "alpha", "N", "T", "K", "du", "dlam"):
+            fields[name] = (shapes.get(name, ()), np.dtype(int) if name == "stage" else floating)
+        return fields
 
     # --- stage entry ---------------------------------------------------------------------------
 
@@ -978,6 +1019,9 @@ class _BatchStepper:
 
     def _start_stage(self, index: np.ndarray) -> None:
         """Cases ``index`` start their (set up) stage: dy/ds, indicators, state stored, turn."""
+        if self.compiled is not None:  # no cycle stage there: no turn to start
+            self.compiled.start(self, index)
+            return
         batch, stage, y = self.batch.take(index), self.stages.take(index), self.y[index]
         dy, aux = _rhs(batch, stage, y, self.layout)
         self.derivative[index] = dy
@@ -1036,20 +1080,33 @@ class _BatchStepper:
         below ``min_step``.
         """
         accept = err <= 1.0
-        with np.errstate(divide="ignore", invalid="ignore"):
-            factor = np.where(err == 0, 10.0, np.clip(0.9 * err**ERROR_EXPONENT, 0.2, 10.0))
-        factor = np.where(np.isfinite(err), factor, 0.25)
+        factor = np.where(np.isfinite(err), step_factor(err), 0.25)
         factor = np.where(accept, factor, np.minimum(factor, 0.9))
         self.step_size[active] = np.clip(h0 * factor, 0.0, self.options.max_step)
         self.rejected[active[~accept]] += 1
         underflow = ~accept & (self.step_size[active] < self.options.min_step)
+        self.fail_step_size_underflow(active[underflow])
+        return accept
+
+    def fail_step_size_underflow(self, cases: np.ndarray) -> None:
+        """Cases ``cases`` fail: their step size fell below ``min_step``."""
         self.fail(
-            active[underflow],
+            cases,
             "step_size_underflow",
             "the step size fell below min_step: the path cannot be continued "
             "(non-convergent Newton projection, a kink or a singular point)",
         )
-        return accept
+
+    def fail_outside_domain(self, cases: np.ndarray, why: np.ndarray) -> None:
+        """Cases ``cases`` fail: they left the admissible domain (``why``, per case)."""
+        for reason in np.unique(why):
+            which = cases[why == reason]
+            self.fail(
+                which,
+                "left_domain",
+                f"the path left the admissible domain ({reason}) in stage "
+                f"{self.stage_index[which[0]] + 1}",
+            )
 
     def _fail_outside_domain(self, steps: _AcceptedSteps) -> _AcceptedSteps | None:
         """Fail the cases whose new state left the admissible domain.
@@ -1062,19 +1119,8 @@ class _BatchStepper:
         finite = np.isfinite(steps.y_new).all(-1) & np.isfinite(steps.aux.evaluation.forces).all(-1)
         outside = ~finite | ~(length > 0) | ~(np.abs(angle) < math.pi / 2)
         if outside.any():
-            why = np.where(
-                ~finite,
-                "non-finite numbers",
-                np.where(~(length > 0), "l* <= 0", "alpha outside (-pi/2, pi/2)"),
-            )
-            for reason in np.unique(why[outside]):
-                which = steps.cases[outside & (why == reason)]
-                self.fail(
-                    which,
-                    "left_domain",
-                    f"the path left the admissible domain ({reason}) in stage "
-                    f"{self.stage_index[which[0]] + 1}",
-                )
+            why = np.asarray(DOMAIN_REASONS)[np.where(~finite, 0, np.where(~(length > 0), 1, 2))]
+            self.fail_outside_domain(steps.cases[outside], why[outside])
         keep = np.flatnonzero(~outside)
         if keep.size == 0:
             return None
@@ -1223,24 +1269,56 @@ class _BatchStepper:
         # A cut at (or a rounding error past) the target ends the stage too.
         at_target = (cut_column == TARGET_COLUMN) | (indicators[:, TARGET_COLUMN] >= 0)
         target_hit = is_cut & ~stop_hit & at_target
-        for column in np.unique(cut_column[stop_hit]):
-            which = cases[stop_hit & (cut_column == column)]
+        self.stop(cases[stop_hit], cut_column[stop_hit])
+        too_many = (self.accepted[cases] >= self.options.max_steps) & ~target_hit & ~stop_hit
+        self.fail_max_steps(cases[too_many])
+        self.enter_next_stage(cases[target_hit])
+
+    def stop(self, cases: np.ndarray, columns: np.ndarray) -> None:
+        """Cases ``cases`` stop at the stop event of indicator column ``columns`` (per case)."""
+        for column in np.unique(columns):
+            which = cases[columns == column]
             name = INDICATOR_EVENTS[column]
             number = self.stage_index[which[0]] + 1
             self.end(which, f"stopped:{name}", f"stopped at {name} in stage {number}")
-        too_many = (self.accepted[cases] >= self.options.max_steps) & ~target_hit & ~stop_hit
+
+    def fail_max_steps(self, cases: np.ndarray) -> None:
+        """Cases ``cases`` fail: ``max_steps`` accepted steps before the end of the programme."""
         self.fail(
-            cases[too_many],
+            cases,
             "max_steps",
             f"reached max_steps = {self.options.max_steps} accepted steps before the end of the "
             "programme",
         )
-        if target_hit.any():
-            finished = cases[target_hit]
+
+    def enter_next_stage(self, cases: np.ndarray) -> None:
+        """Cases ``cases`` reached their stage target: they enter the next stage."""
+        if cases.size:
             # Stage indices before any case enters its next stage (enter() updates them).
-            finished_index = self.stage_index[finished].copy()
+            finished_index = self.stage_index[cases].copy()
             for k in np.unique(finished_index):
-                self.enter(finished[finished_index == k], int(k) + 1)
+                self.enter(cases[finished_index == k], int(k) + 1)
+
+
+def _compiled_stepper(
+    batch: CaseBatch, programme: LoadingProgramme, options: PathOptions, secondary_contacts: str
+) -> CompiledStages | None:
+    """The compiled stage loop where ``options.backend`` asks for it and it applies.
+
+    Raises RuntimeError (from :func:`ncstab.paths.compiled.stage_runner`) when
+    the compiled backend is asked for and numba is missing.
+    """
+    if options.backend != "compiled":
+        return None
+    from ncstab.paths import compiled
+
+    if not compiled.NUMBA_AVAILABLE:
+        compiled.stage_runner(batch)  # raises, naming the extra to install
+    if compiled.unsupported_reason(batch, programme, secondary_contacts) is not None:
+        return None
+    from ncstab.paths.compiled_stages import CompiledStages
+
+    return CompiledStages(batch, compiled.stage_runner(batch))
 
 
 def follow_cases(

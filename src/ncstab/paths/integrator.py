@@ -12,7 +12,7 @@ from typing import Callable
 import numpy as np
 from scipy.integrate._ivp import dop853_coefficients as dop
 
-__all__ = ["END_STAGE", "combine_stages", "dop853_step", "dense_output", "evaluate_dense", "error_norm", "ERROR_EXPONENT"]
+__all__ = ["END_STAGE", "combine_stages", "dop853_step", "dense_output", "evaluate_dense", "error_norm", "ERROR_EXPONENT", "step_factor"]
 
 _A = dop.A[: dop.N_STAGES, : dop.N_STAGES]
 _B = dop.B
@@ -22,6 +22,21 @@ _E5 = dop.E5
 END_STAGE = dop.N_STAGES
 #: Step-size controller exponent -1/(order + 1) with error order 7 (as scipy).
 ERROR_EXPONENT = -1.0 / 8.0
+
+
+def step_factor(err: np.ndarray) -> np.ndarray:
+    """Step-size factor 0.9 err^(-1/8), clipped to [0.2, 10] (10 where err = 0).
+
+    The eighth root is taken as three square roots: a square root is correctly
+    rounded on every machine, where numpy's ``power`` may take SIMD code that
+    rounds differently from the C library, so the step sizes (and with them
+    every stored state) would depend on the processor and on the backend
+    (:mod:`ncstab.paths.compiled` takes the same roots).  Non-finite ``err``
+    (a failed step) gives NaN, for the caller to replace.
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        factor = np.clip(0.9 / np.sqrt(np.sqrt(np.sqrt(err))), 0.2, 10.0)
+    return np.where(err == 0, 10.0, factor)
 
 
 def combine_stages(coefficients: np.ndarray, stages: np.ndarray) -> np.ndarray:

@@ -6,10 +6,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["PathOptions", "SystemSpec", "SECONDARY_CONTACT_MODES", "NORMAL_MODES"]
+__all__ = ["BACKENDS", "PathOptions", "SystemSpec", "SECONDARY_CONTACT_MODES", "NORMAL_MODES"]
 
 SECONDARY_CONTACT_MODES = ("activate", "ignore", "stop")
 NORMAL_MODES = ("deformable", "rigid")
+#: Steppers of the path engine (PathOptions.backend).
+BACKENDS = ("numpy", "compiled")
 
 
 @dataclass(frozen=True)
@@ -35,6 +37,12 @@ class PathOptions:
         with ``failed:max_steps``.
     event_tol
         Width of the arclength bracket within which events are located.
+    backend
+        ``"numpy"`` (default): every case advances in numpy passes over the
+        batch.  ``"compiled"``: the smooth linear stages of the deformable
+        diamond run as one compiled loop per case (numba, the ``compiled``
+        extra), taking the same steps to rounding; other programmes and
+        systems still run on numpy (:mod:`ncstab.paths.compiled`).
     """
 
     rtol: float = 1e-10
@@ -46,6 +54,7 @@ class PathOptions:
     max_step: float = 0.02
     max_steps: int = 20_000
     event_tol: float = 1e-10
+    backend: str = "numpy"
 
     def __post_init__(self) -> None:
         for name in ("rtol", "atol", "newton_tol", "initial_step", "min_step", "max_step", "event_tol"):
@@ -58,6 +67,10 @@ class PathOptions:
             whole = isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
             if not (whole and value >= 1):
                 raise ValueError(f"PathOptions.{name} must be a positive integer, got {value!r}")
+        if self.backend not in BACKENDS:
+            raise ValueError(
+                f"PathOptions.backend must be one of {', '.join(BACKENDS)}, got {self.backend!r}"
+            )
         if self.min_step > self.max_step:
             raise ValueError("PathOptions.min_step must not exceed max_step")
 

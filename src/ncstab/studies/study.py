@@ -603,12 +603,18 @@ def _options_section(data: Mapping[str, Any], errors: _Errors) -> PathOptions:
         if name not in _OPTION_FIELDS:
             continue
         field = f"options.{name}"
-        is_int = isinstance(_OPTION_FIELDS[name].default, int)
-        if is_int:
+        default = _OPTION_FIELDS[name].default
+        is_int = isinstance(default, int)
+        if isinstance(default, str):
+            if not isinstance(raw, str):
+                errors.add(field, f"expected a string, got {_toml_type(raw)} ({raw!r})")
+                continue
+            value: Any = raw
+        elif is_int:
             if isinstance(raw, bool) or not isinstance(raw, int):
                 errors.add(field, f"expected a whole number, got {_toml_type(raw)} ({raw!r})")
                 continue
-            value: Any = raw
+            value = raw
         else:
             value = _number(raw, field, errors)
             if value is None:

@@ -1,0 +1,137 @@
+"""Drive the compiled stage loop from the engine's stepper.
+
+:class:`CompiledStages` hands every running case of a
+:class:`ncstab.paths.engine._BatchStepper` to the compiled loop of
+:mod:`ncstab.paths.compiled` for the rest of its current stage, then does
+with the outcome what the numpy passes do: stores the steps, ends or fails
+the case, or enters its next stage (stage entry stays with the stepper).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ncstab.paths.compiled import EVENT_FIELDS, RECORD_FIELDS, Outcome, StageLoop
+from ncstab.paths.programme import EVENTS
+
+if TYPE_CHECKING:
+    from ncstab.paths.engine import _BatchStepper
+    from ncstab.paths.model import CaseBatch
+
+__all__ = ["STEPS_PER_CALL", "CompiledStages"]
+
+#: Room the recorder must have per case before a call, in states: a case
+#: whose steps fill the recorder pauses, the recorder grows (doubling) and
+#: the next call goes on from there.
+STEPS_PER_CALL = 1
+
+
+class CompiledStages:
+    """The compiled stage loop bound to one batch.
+
+    Parameters
+    ----------
+    batch
+        The stepper's cases (one law, fused kernel).
+    loop
+        :func:`ncstab.paths.compiled.stage_runner` for that law.
+    """
+
+    def __init__(self, batch: CaseBatch, loop: StageLoop) -> None:
+        size = batch.size
+        self.runner = loop.run
+        self.starter = loop.start
+        values = [np.broadcast_to(np.asarray(v, dtype=float), (size,)) for v in batch.law.parameter_values()]
+        self.parameters = np.ascontiguousarray(np.stack(values, axis=-1) if values else np.zeros((size, 0)))
+        cos0, sin0 = batch._alpha0_trig
+        self.cos0 = np.ascontiguousarray(np.broadcast_to(cos0, (size,)), dtype=float)
+        self.sin0 = np.ascontiguousarray(np.broadcast_to(sin0, (size,)), dtype=float)
+        self.code = np.zeros(size, dtype=np.int64)
+        self.detail = np.zeros(size, dtype=np.int64)
+
+    def start(self, stepper: _BatchStepper, cases: np.ndarray) -> None:
+        """Cases ``cases`` start their (set up) stage: dy/ds, indicators and the state stored."""
+        recorder = stepper.recorder
+        recorder.create(stepper.record_fields())
+        recorder.reserve(int(recorder.count[cases].max()) + 1 if cases.size else 0)
+        stages = stepper.stages
+        self.starter(
+            cases.astype(np.int64), stepper.y, stepper.derivative, stepper.indicators, stepper.arclength,
+            stages.force_controlled, stages.slope, stages.lam_end, stages.target_sign, stages.orientation,
+            stages.secondary_state.astype(np.int64), self.parameters, self.cos0, self.sin0,
+            stepper.stage_index[cases[0]] if cases.size else 0,
+            tuple(recorder.arrays[name] for name in RECORD_FIELDS), recorder.count,
+        )
+
+    def run(self, stepper: _BatchStepper) -> None:
+        """Run every running case of ``stepper`` to its end, stage by stage."""
+        from ncstab.paths.engine import RUNNING
+
+        size = stepper.size
+        columns = max(len(c) for c in stepper.event_column.values())
+        event_columns = np.full((len(EVENTS), columns), -1, dtype=np.int64)
+        for e, name in enumerate(EVENTS):
+            event_columns[e, : len(stepper.event_column[name])] = stepper.event_column[name]
+        found = np.ascontiguousarray(np.stack([stepper.events[name]["found"] for name in EVENTS]))
+        values = np.full((len(EVENTS), size, len(EVENT_FIELDS)), np.nan)
+        stage = np.stack([stepper.events[name]["stage"] for name in EVENTS]).astype(np.int64)
+        counters = [np.ascontiguousarray(a, dtype=np.int64) for a in (stepper.accepted, stepper.rejected, stepper.located)]
+        stepper.accepted, stepper.rejected, stepper.located = counters
+        stages = stepper.stages
+        while True:
+            active = np.flatnonzero(stepper.status == RUNNING)
+            if active.size == 0:
+                break
+            for k in np.unique(stepper.stage_index[active]):
+                cases = active[stepper.stage_index[active] == k]
+                recorder = stepper.recorder
+                recorder.reserve(int(recorder.count[cases].max()) + STEPS_PER_CALL)
+                self.runner(
+                    cases.astype(np.int64), stepper.y, stepper.derivative, stepper.indicators,
+                    stepper.step_size, stepper.arclength, *counters,
+                    stages.force_controlled, stages.offset, stages.slope, stages.lam_end,
+                    stages.target_sign, stages.orientation, stages.secondary_state.astype(np.int64),
+                    self.parameters, self.cos0, self.sin0, stepper.stop_table[k], event_columns,
+                    found, values, stage, int(k), tuple(recorder.arrays[name] for name in RECORD_FIELDS),
+                    recorder.count, self.code, self.detail, stepper.options.rtol, stepper.options.atol,
+                    stepper.options.newton_tol, stepper.options.newton_max_iter,
+                    stepper.options.min_step, stepper.options.max_step, stepper.options.max_steps,
+                    stepper.options.event_tol,
+                )
+                self._end(stepper, cases)
+        self._store_events(stepper, found, values, stage)
+
+    def _end(self, stepper: _BatchStepper, cases: np.ndarray) -> None:
+        """Do what each case's outcome asks (the numpy stepper's texts and statuses)."""
+        from ncstab.paths.engine import DOMAIN_REASONS
+
+        code, detail = self.code[cases], self.detail[cases]
+        stopped = code == Outcome.STOPPED
+        stepper.stop(cases[stopped], detail[stopped])
+        stepper.fail_step_size_underflow(cases[code == Outcome.STEP_SIZE_UNDERFLOW])
+        outside = code == Outcome.LEFT_DOMAIN
+        stepper.fail_outside_domain(cases[outside], np.asarray(DOMAIN_REASONS)[detail[outside]])
+        stepper.fail_max_steps(cases[code == Outcome.MAX_STEPS])
+        stepper.enter_next_stage(cases[code == Outcome.TARGET])
+
+    @staticmethod
+    def _store_events(
+        stepper: _BatchStepper, found: np.ndarray, values: np.ndarray, stage: np.ndarray
+    ) -> None:
+        """Copy the first events the loop located into the stepper's event tables."""
+        for e, name in enumerate(EVENTS):
+            table = stepper.events[name]
+            rows = np.flatnonzero(found[e] & ~table["found"])
+            if rows.size == 0:
+                continue
+            row_values = values[e, rows]
+            table["found"][rows] = True
+            table["stage"][rows] = stage[e, rows]
+            for key, column in (("s", 0), ("s_lower", 1), ("s_upper", 2), ("lam", 3), ("l", 8),
+                                ("alpha", 9), ("N", 10), ("T", 11)):
+                table[key][rows] = row_values[:, column]
+            table["u"][rows] = row_values[:, 4:6]
+            table["F"][rows] = row_values[:, 6:8]
+            table["K"][rows] = row_values[:, 12:16].reshape(-1, 2, 2)
