@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
 
 import numpy as np
 import pytest
@@ -574,3 +575,18 @@ def test_a_study_file_with_a_bad_backend_is_rejected_naming_the_field(value):
     with pytest.raises(StudyFileError) as info:
         parse_study(STUDY + f"[options]\nbackend = {value}\n", "study.toml")
     assert "options.backend" in info.value.fields, info.value.errors
+
+
+def test_the_compiled_loop_is_generated_once_and_cached_on_disk():
+    """The loop of a law is a module in the cache directory, with numba's cache beside it."""
+    from ncstab.paths import compiled
+
+    follow(SystemSpec(secondary_contacts="ignore"), "cundall_strack", [{"hold": {"F2": 0.0}, "drive": {"D1": 0.01}}],
+           {"gamma": 1.0}, PathOptions(backend="compiled"))
+    directory = compiled._cache_directory()
+    modules = sorted(directory.glob("ncstab_stage_loop_*.py"))
+    assert modules, directory
+    loaded = [sys.modules[m.stem] for m in modules if m.stem in sys.modules]
+    assert any(module.rate_form and not module.uses_alpha for module in loaded)  # Cundall-Strack's
+    index = {p.name.split(".")[1].split("-")[0] for p in (directory / "__pycache__").glob("*.nbi")}
+    assert {"run", "start"} <= index
