@@ -22,6 +22,8 @@ from __future__ import annotations
 import dataclasses
 import math
 import sys
+import tempfile
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -590,3 +592,18 @@ def test_the_compiled_loop_is_generated_once_and_cached_on_disk():
     assert any(module.rate_form and not module.uses_alpha for module in loaded)  # Cundall-Strack's
     index = {p.name.split(".")[1].split("-")[0] for p in (directory / "__pycache__").glob("*.nbi")}
     assert {"run", "start"} <= index
+
+
+def test_a_cache_directory_that_cannot_be_written_falls_back_to_a_temporary_one(tmp_path, monkeypatch):
+    from ncstab.paths import compiled
+
+    blocked = tmp_path / "file"
+    blocked.write_text("not a directory")
+    monkeypatch.setenv("NCSTAB_CACHE_DIR", str(blocked / "cache"))  # mkdir fails: a file is in the way
+    (tmp_path / "tmp").mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "tmp"))
+    source = '"""A generated module."""\nVALUE = 42\n'
+    module = compiled._load_module(source)
+    assert module.VALUE == 42
+    assert Path(module.__file__).parent.parent == tmp_path / "tmp"
+    assert compiled._load_module(source) is module  # loaded once per process

@@ -20,8 +20,9 @@ kernel.  Stage entry, the first stored state of a stage and the assembly of
 the result stay with the numpy stepper: this module runs each case from the
 start of a stage to its end (target, stop event or failure).
 
-numba is optional (``pip install 'ncstab[compiled]'``); the loop is compiled
-once per law per process (a few seconds).
+numba is optional (``pip install 'ncstab[compiled]'``).  Each law's loop is
+generated as a module in a cache directory and compiled once per machine
+(about 10 s; numba caches the machine code beside the module).
 """
 
 from __future__ import annotations
@@ -101,8 +102,6 @@ class Outcome:
 
 
 _N_COLUMNS = len(INDICATOR_EVENTS)
-_N_RECORD = len(RECORD_FIELDS)
-_N_EVENT = len(EVENT_FIELDS)
 _STAGES = dop.N_STAGES  # 12
 _EXTENDED = dop.N_STAGES_EXTENDED  # 16
 _A = np.ascontiguousarray(dop.A, dtype=float)
@@ -165,6 +164,7 @@ def _body(kernel: Callable[..., list]) -> str:
 
 @functools.cache
 def _runner(kernel: Callable[..., list], n_parameters: int, rate_form: bool) -> StageLoop:
+    """The loop of one law's fused kernel (generated, cached, loaded once per process)."""
     uses_alpha = re.search(r"\balpha_\b", _body(kernel)) is not None
     source = _module_source(kernel, n_parameters, 10 if rate_form else 8, rate_form, uses_alpha)
     return _load_module(source).LOOP
@@ -228,6 +228,17 @@ def _cache_directory() -> Path:
     return base / "ncstab" / "compiled"
 
 
+def _write_module(directory: Path, name: str, source: str) -> Path:
+    """``directory/name.py`` holding ``source`` (written atomically unless it already does)."""
+    directory.mkdir(parents=True, exist_ok=True)
+    path = directory / f"{name}.py"
+    if not path.exists() or path.read_text(encoding="utf-8") != source:
+        scratch = directory / f".{name}.{os.getpid()}.tmp"
+        scratch.write_text(source, encoding="utf-8")
+        os.replace(scratch, path)
+    return path
+
+
 def _load_module(source: str) -> Any:
     """Import the generated module ``source`` from the cache directory.
 
@@ -246,15 +257,9 @@ def _load_module(source: str) -> Any:
     if name in sys.modules:
         return sys.modules[name]
     try:
-        directory = _cache_directory()
-        directory.mkdir(parents=True, exist_ok=True)
-    except OSError:
-        directory = Path(tempfile.mkdtemp(prefix="ncstab-compiled-"))
-    path = directory / f"{name}.py"
-    if not path.exists() or path.read_text(encoding="utf-8") != source:
-        scratch = directory / f".{name}.{os.getpid()}.tmp"
-        scratch.write_text(source, encoding="utf-8")
-        os.replace(scratch, path)
+        path = _write_module(_cache_directory(), name, source)
+    except OSError:  # a read-only home, say
+        path = _write_module(Path(tempfile.mkdtemp(prefix="ncstab-compiled-")), name, source)
     spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module
@@ -287,8 +292,8 @@ def _build_runner(law: Callable[..., tuple], rate_form: bool, uses_alpha: bool) 
     steps.  The loop is built from this function's *text*: its body, after
     this docstring, becomes the body of a generated module whose globals
     ``law``, ``rate_form`` and ``uses_alpha`` are this function's parameters
-    (:func:`_module_source`), so that numba can cache it on disk.  Called, it
-    builds the same loop from closures, uncached.
+    (:func:`_module_source`), so that numba can cache it on disk.  It is not
+    called.
     """
     # Small functions on the hot path are inlined in numba's IR; the others
     # are left to LLVM (inlining every helper triples the compile time for a
