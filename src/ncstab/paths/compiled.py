@@ -66,15 +66,12 @@ from ncstab.paths.programme import CycleStage
 __all__ = [
     "EVENT_FIELDS",
     "NUMBA_AVAILABLE",
-    "RECORD_FIELDS",
     "Outcome",
     "StageLoop",
     "stage_runner",
     "unsupported_reason",
 ]
 
-#: The recorder's fields, in the order the stage loop receives their arrays.
-RECORD_FIELDS = ("s", "stage", "u", "lam", "internal", "work", "F", "l", "alpha", "N", "T", "K", "du", "dlam")
 #: Columns of the per-event value table.
 EVENT_FIELDS = (
     "s", "s_lower", "s_upper", "lam", "u0", "u1", "F0", "F1", "l", "alpha", "N", "T",
@@ -639,6 +636,7 @@ def _build_runner(law: Callable[..., tuple], rate_form: bool, uses_alpha: bool) 
     @njit
     def store_record(recorded, i, position, arclength, stage_number, y, ev, aux):
         # engine._BatchStepper.record, straight into the recorder's padded arrays
+        # (``recorded``: one array per field, in the order of engine.STORED_FIELDS)
         (r_s, r_stage, r_u, r_lam, r_internal, r_work, r_f, r_l, r_alpha, r_n, r_t, r_k, r_du,
          r_dlam) = recorded
         r_s[i, position] = arclength

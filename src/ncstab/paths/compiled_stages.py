@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ncstab.paths.compiled import EVENT_FIELDS, RECORD_FIELDS, Outcome, StageLoop
+from ncstab.paths.compiled import EVENT_FIELDS, Outcome, StageLoop
 from ncstab.paths.programme import EVENTS
 
 if TYPE_CHECKING:
@@ -53,6 +53,8 @@ class CompiledStages:
 
     def start(self, stepper: _BatchStepper, cases: np.ndarray) -> None:
         """Cases ``cases`` start their (set up) stage: dy/ds, indicators and the state stored."""
+        from ncstab.paths.engine import STORED_FIELDS
+
         recorder = stepper.recorder
         recorder.create(stepper.record_fields())
         recorder.reserve(int(recorder.count[cases].max()) + 1 if cases.size else 0)
@@ -62,12 +64,12 @@ class CompiledStages:
             stages.force_controlled, stages.slope, stages.lam_end, stages.target_sign, stages.orientation,
             stages.secondary_state.astype(np.int64), self.parameters, self.cos0, self.sin0,
             stepper.stage_index[cases[0]] if cases.size else 0,
-            tuple(recorder.arrays[name] for name in RECORD_FIELDS), recorder.count,
+            tuple(recorder.arrays[name] for name in STORED_FIELDS), recorder.count,
         )
 
     def run(self, stepper: _BatchStepper) -> None:
         """Run every running case of ``stepper`` to its end, stage by stage."""
-        from ncstab.paths.engine import RUNNING
+        from ncstab.paths.engine import RUNNING, STORED_FIELDS
 
         size = stepper.size
         columns = max(len(c) for c in stepper.event_column.values())
@@ -77,8 +79,6 @@ class CompiledStages:
         found = np.ascontiguousarray(np.stack([stepper.events[name]["found"] for name in EVENTS]))
         values = np.full((len(EVENTS), size, len(EVENT_FIELDS)), np.nan)
         stage = np.stack([stepper.events[name]["stage"] for name in EVENTS]).astype(np.int64)
-        counters = [np.ascontiguousarray(a, dtype=np.int64) for a in (stepper.accepted, stepper.rejected, stepper.located)]
-        stepper.accepted, stepper.rejected, stepper.located = counters
         stages = stepper.stages
         while True:
             active = np.flatnonzero(stepper.status == RUNNING)
@@ -90,11 +90,11 @@ class CompiledStages:
                 recorder.reserve(int(recorder.count[cases].max()) + STEPS_PER_CALL)
                 self.runner(
                     cases.astype(np.int64), stepper.y, stepper.derivative, stepper.indicators,
-                    stepper.step_size, stepper.arclength, *counters,
+                    stepper.step_size, stepper.arclength, stepper.accepted, stepper.rejected, stepper.located,
                     stages.force_controlled, stages.offset, stages.slope, stages.lam_end,
                     stages.target_sign, stages.orientation, stages.secondary_state.astype(np.int64),
                     self.parameters, self.cos0, self.sin0, stepper.stop_table[k], event_columns,
-                    found, values, stage, int(k), tuple(recorder.arrays[name] for name in RECORD_FIELDS),
+                    found, values, stage, int(k), tuple(recorder.arrays[name] for name in STORED_FIELDS),
                     recorder.count, self.code, self.detail, stepper.options.rtol, stepper.options.atol,
                     stepper.options.newton_tol, stepper.options.newton_max_iter,
                     stepper.options.min_step, stepper.options.max_step, stepper.options.max_steps,
@@ -129,9 +129,9 @@ class CompiledStages:
             row_values = values[e, rows]
             table["found"][rows] = True
             table["stage"][rows] = stage[e, rows]
-            for key, column in (("s", 0), ("s_lower", 1), ("s_upper", 2), ("lam", 3), ("l", 8),
-                                ("alpha", 9), ("N", 10), ("T", 11)):
-                table[key][rows] = row_values[:, column]
-            table["u"][rows] = row_values[:, 4:6]
-            table["F"][rows] = row_values[:, 6:8]
-            table["K"][rows] = row_values[:, 12:16].reshape(-1, 2, 2)
+            for key in ("s", "s_lower", "s_upper", "lam", "l", "alpha", "N", "T"):
+                table[key][rows] = row_values[:, EVENT_FIELDS.index(key)]
+            for key, first in (("u", "u0"), ("F", "F0"), ("K", "K00")):
+                start = EVENT_FIELDS.index(first)
+                shape = table[key].shape[1:]
+                table[key][rows] = row_values[:, start : start + int(np.prod(shape))].reshape((-1, *shape))

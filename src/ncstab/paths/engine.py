@@ -48,6 +48,8 @@ __all__ = ["CaseResult", "follow_cases"]
 
 RUNNING = "running"
 FINISHED = "finished"
+#: The fields of every stored state (:meth:`_BatchStepper.record`), in this order.
+STORED_FIELDS = ("s", "stage", "u", "lam", "internal", "work", "F", "l", "alpha", "N", "T", "K", "du", "dlam")
 #: Why a state is outside the admissible domain (checked in this order).
 DOMAIN_REASONS = ("non-finite numbers", "l* <= 0", "alpha outside (-pi/2, pi/2)")
 
@@ -306,7 +308,7 @@ class _Recorder:
                 for key, value in values.items()
             }
         else:
-            self._grow(needed)
+            self.reserve(needed)
         self._scatter(case * self.capacity + position, values)
         self.count[case] += 1
 
@@ -320,12 +322,8 @@ class _Recorder:
             }
 
     def reserve(self, needed: int) -> None:
-        """Room for ``needed`` states per case (for a writer that fills the
-        arrays and ``count`` itself, :mod:`ncstab.paths.compiled`)."""
-        self._grow(needed)
-
-    def _grow(self, needed: int) -> None:
-        """Room for ``needed`` states per case (the capacity at least doubles)."""
+        """Room for ``needed`` states per case (the capacity at least doubles); also
+        for a writer that fills the arrays and ``count`` itself (:mod:`ncstab.paths.compiled`)."""
         assert self.arrays is not None
         if needed > self.capacity:
             capacity = max(needed, 2 * self.capacity)
@@ -857,10 +855,9 @@ class _BatchStepper:
         """Shape (after the case and step axes) and dtype of each stored field."""
         n, floating = self.batch.n_dof, np.dtype(float)
         shapes = {"u": (n,), "internal": (self.layout.n_internal,), "F": (n,), "K": (n, n), "du": (n,)}
-        fields = {}
-        for name in ("s", "stage", "u", "lam", "internal", "work", "F", "l", "alpha", "N", "T", "K", "du", "dlam"):
-            fields[name] = (shapes.get(name, ()), np.dtype(int) if name == "stage" else floating)
-        return fields
+        return {
+            name: (shapes.get(name, ()), np.dtype(int) if name == "stage" else floating) for name in STORED_FIELDS
+        }
 
     # --- stage entry ---------------------------------------------------------------------------
 
