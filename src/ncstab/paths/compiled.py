@@ -199,7 +199,7 @@ import numpy as np
 from ncstab.paths.compiled import (
     _A, _B, _D, _E3, _E5, _EXTENDED, _N_COLUMNS, _POWER, _STAGES, BREAK_ALWAYS, Outcome, StageLoop, _terms,
 )
-from ncstab.paths.events import CYCLE_COLUMN, SIGN_NOISE, TARGET_COLUMN, TINY, TURNING_COLUMN
+from ncstab.paths.events import CYCLE_COLUMN, INDICATOR_GAP, SIGN_NOISE, TARGET_COLUMN, TINY, TURNING_COLUMN
 
 rate_form = {rate_form!r}
 uses_alpha = {uses_alpha!r}
@@ -307,6 +307,7 @@ def _build_runner(law: Callable[..., tuple], rate_form: bool, uses_alpha: bool) 
     B_TERMS, B_COUNT, E5_TERMS, E5_COUNT = B_TERMS[0], B_COUNT[0], E5_TERMS[0], E5_COUNT[0]
     E3_TERMS, E3_COUNT = E3_TERMS[0], E3_COUNT[0]
     n_columns, target_column, turning_column = _N_COLUMNS, TARGET_COLUMN, TURNING_COLUMN
+    gap_columns = (INDICATOR_GAP.index(1), INDICATOR_GAP.index(2))  # the two diagonals (ev[12], ev[13])
     sign_noise, tiny = SIGN_NOISE, TINY
     half_pi = math.pi / 2
     N_INT = 1 if rate_form else 0  # internal variables: T for a rate form (one contact family)
@@ -335,8 +336,20 @@ def _build_runner(law: Callable[..., tuple], rate_form: bool, uses_alpha: bool) 
         if not rate_form:
             ev[10] = np.nan
             ev[11] = np.nan
-        ev[12] = vertical * 2 - 1
-        ev[13] = horizontal * 2 - 1
+        ev[12] = gap(vertical)
+        ev[13] = gap(horizontal)
+
+    @hot
+    def gap(extent):
+        # the secondary-contact gap along one diagonal (model: 2 (cos alpha0 - Delta_1) - 1, ...)
+        return extent * 2 - 1
+
+    @hot
+    def signed_gap(value, secondary, bit):
+        # events.indicator_values: a gap exactly at zero takes the sign of the contact's state
+        if value == 0:
+            return -tiny if (secondary & bit) > 0 else tiny
+        return value
 
     @hot
     def angle(ev):
@@ -361,8 +374,9 @@ def _build_runner(law: Callable[..., tuple], rate_form: bool, uses_alpha: bool) 
         df0 = k00 * dv0 + k01 * dv1
         df1 = k10 * dv0 + k11 * dv1
         norm = np.sqrt((du0 * du0 + du1 * du1) + (df0 * df0 + df1 * df1) + det_m * det_m)
-        scale = 1.0 / norm if norm > 0 else np.nan
-        scale = scale * orientation
+        # (1 / norm) * orientation, as one division: orientation is +-1, so the
+        # same number (one rounding), one operation shorter on the critical path
+        scale = orientation / norm if norm > 0 else np.nan
         aux[0] = dv0 * scale
         aux[1] = dv1 * scale
         aux[2] = du0 * scale
@@ -418,17 +432,17 @@ def _build_runner(law: Callable[..., tuple], rate_form: bool, uses_alpha: bool) 
         out[2] = significant(m00 * m11 - m01 * m10, square)
         difference = k00 - k11
         out[3] = significant(difference * difference + 4 * k01 * k10, square)
-        gap0, gap1 = ev[12], ev[13]
-        if gap0 == 0:
-            gap0 = -tiny if (secondary & 1) > 0 else tiny
-        if gap1 == 0:
-            gap1 = -tiny if (secondary & 2) > 0 else tiny
-        out[4] = gap0
-        out[5] = gap1
+        out[4] = signed_gap(ev[12], secondary, 1)
+        out[5] = signed_gap(ev[13], secondary, 2)
         out[6] = aux[4]
         out[7] = np.nan
         out[8] = np.nan
-        out[9] = (lam - lam_end) * target_sign
+        out[9] = target_indicator(lam, lam_end, target_sign)
+
+    @hot
+    def target_indicator(lam, lam_end, target_sign):
+        # events.indicator_values: the stage target, (lambda - lambda_end) sign
+        return (lam - lam_end) * target_sign
 
     @hot
     def combine(weights, terms, n_terms, stages, out):
@@ -573,7 +587,15 @@ def _build_runner(law: Callable[..., tuple], rate_form: bool, uses_alpha: bool) 
     @njit
     def indicator_at(y, column, fc0, fc1, offset, slope, lam_end, target_sign, orientation, secondary, p,
                      cos0, sin0, newton_tol, newton_max_iter, ev, aux, values):
-        # engine._locate_crossings.evaluate: project (total form), evaluate, one column
+        # engine._locate_crossings.evaluate: project (total form), evaluate, one column.
+        # Without a projection the target and the gaps are functions of y alone: the
+        # same operations without the law (bit for bit).
+        if rate_form and column == target_column:
+            return target_indicator(y[2], lam_end, target_sign)
+        if rate_form and column == gap_columns[0]:
+            return signed_gap(gap(cos0 - y[0]), secondary, 1)
+        if rate_form and column == gap_columns[1]:
+            return signed_gap(gap(sin0 - y[1]), secondary, 2)
         if not rate_form:
             project(y, fc0, fc1, offset, slope, p, cos0, sin0, newton_tol, newton_max_iter, ev)
         else:
@@ -681,7 +703,7 @@ def _build_runner(law: Callable[..., tuple], rate_form: bool, uses_alpha: bool) 
         row[14] = ev[8]
         row[15] = ev[9]
 
-    @njit
+    @hot
     def dop853(y0, f0, h, rtol, atol, fc0, fc1, g0, g1, orientation, p, cos0, sin0, stages, y1, work, ev,
                aux):
         # integrator.dop853_step; leaves ev, aux at the end state y1 (its last stage)
@@ -871,22 +893,50 @@ def _build_runner(law: Callable[..., tuple], rate_form: bool, uses_alpha: bool) 
                     break
 
 
+    @njit
+    def initial_step_size(y0, f0, f1, probe, rtol, atol):
+        # integrator.initial_step_size, one case (np.mean over m: a sum in order, then / m)
+        s1 = 0.0
+        s2 = 0.0
+        for j in range(M):
+            scale = atol + abs(y0[j]) * rtol
+            a = f0[j] / scale
+            b = (f1[j] - f0[j]) / scale
+            s1 += a * a
+            s2 += b * b
+        d1 = np.sqrt(s1 / M)
+        d2 = np.sqrt(s2 / M) / probe
+        largest = np.nan if (np.isnan(d1) or np.isnan(d2)) else max(d1, d2)
+        if not np.isfinite(largest):
+            return probe
+        if largest <= 1e-15:
+            return min(100 * probe, max(1e-6, 1e-3 * probe))
+        return min(100 * probe, np.sqrt(np.sqrt(np.sqrt(0.01 / largest))))
+
     @numba.njit(cache=False, error_model="numpy")
     def start(cases, y, derivative, indicator_table, arclength, force_controlled, slope, lam_end, target_sign,
-              orientation, secondary_state, parameters, cos0, sin0, stage_number, recorded, record_count):
+              orientation, secondary_state, parameters, cos0, sin0, stage_number, recorded, record_count,
+              step_size, probe, rtol, atol):
         """Cases ``cases`` start their (set up) stage: dy/ds, indicators, state stored
-        (engine._BatchStepper._start_stage)."""
+        (engine._BatchStepper._start_stage); the first step where ``step_size`` is NaN
+        (engine._BatchStepper._estimate_first_steps)."""
         state = np.empty(M)
         ev = np.empty(16)
         aux = np.empty(6)
+        f1 = np.empty(M)
         for i in cases:
             for j in range(M):
                 state[j] = y[i, j]
-            rhs(state, force_controlled[i, 0], force_controlled[i, 1], slope[i, 0], slope[i, 1], orientation[i],
-                parameters[i], cos0[i], sin0[i], derivative[i], ev, aux)
-            indicators(ev, aux, state[2], force_controlled[i, 0], force_controlled[i, 1], lam_end[i],
-                       target_sign[i], secondary_state[i], indicator_table[i])
+            fc0, fc1, g0, g1 = force_controlled[i, 0], force_controlled[i, 1], slope[i, 0], slope[i, 1]
+            rhs(state, fc0, fc1, g0, g1, orientation[i], parameters[i], cos0[i], sin0[i], derivative[i], ev, aux)
+            indicators(ev, aux, state[2], fc0, fc1, lam_end[i], target_sign[i], secondary_state[i],
+                       indicator_table[i])
             store_record(recorded, i, record_count[i], arclength[i], stage_number, state, ev, aux)
             record_count[i] += 1
+            if np.isnan(step_size[i]):
+                for j in range(M):
+                    state[j] = y[i, j] + probe * derivative[i, j]
+                rhs(state, fc0, fc1, g0, g1, orientation[i], parameters[i], cos0[i], sin0[i], f1, ev, aux)
+                step_size[i] = initial_step_size(y[i], derivative[i], f1, probe, rtol, atol)
 
     return StageLoop(run, start)

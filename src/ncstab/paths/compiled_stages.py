@@ -52,7 +52,8 @@ class CompiledStages:
         self.detail = np.zeros(size, dtype=np.int64)
 
     def start(self, stepper: _BatchStepper, cases: np.ndarray) -> None:
-        """Cases ``cases`` start their (set up) stage: dy/ds, indicators and the state stored."""
+        """Cases ``cases`` start their (set up) stage: dy/ds, indicators and the state stored;
+        the first step length where it is still to be estimated."""
         from ncstab.paths.engine import STORED_FIELDS
 
         recorder = stepper.recorder
@@ -65,6 +66,7 @@ class CompiledStages:
             stages.secondary_state.astype(np.int64), self.parameters, self.cos0, self.sin0,
             stepper.stage_index[cases[0]] if cases.size else 0,
             tuple(recorder.arrays[name] for name in STORED_FIELDS), recorder.count,
+            stepper.step_size, stepper.probe_step, stepper.options.rtol, stepper.options.atol,
         )
 
     def run(self, stepper: _BatchStepper) -> None:
@@ -77,7 +79,7 @@ class CompiledStages:
         for e, name in enumerate(EVENTS):
             event_columns[e, : len(stepper.event_column[name])] = stepper.event_column[name]
         found = np.ascontiguousarray(np.stack([stepper.events[name]["found"] for name in EVENTS]))
-        values = np.full((len(EVENTS), size, len(EVENT_FIELDS)), np.nan)
+        values = np.empty((len(EVENTS), size, len(EVENT_FIELDS)))  # read where found only
         stage = np.stack([stepper.events[name]["stage"] for name in EVENTS]).astype(np.int64)
         stages = stepper.stages
         while True:

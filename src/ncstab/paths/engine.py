@@ -35,9 +35,16 @@ from ncstab.paths.events import (
     indicator_values,
     locate_sign_changes,
 )
-from ncstab.paths.integrator import END_STAGE, dense_output, dop853_step, evaluate_dense, step_factor
+from ncstab.paths.integrator import (
+    END_STAGE,
+    dense_output,
+    dop853_step,
+    evaluate_dense,
+    initial_step_size,
+    step_factor,
+)
 from ncstab.paths.model import CaseBatch, Evaluation
-from ncstab.paths.options import PathOptions
+from ncstab.paths.options import AUTO, PathOptions
 from ncstab.paths.programme import CURRENT, EVENTS, CycleStage, LoadingProgramme, Stage
 from ncstab.paths.tangent_field import StageArrays, control_matrix, path_tangent
 
@@ -302,7 +309,7 @@ class _Recorder:
         if self.arrays is None:
             # Created even when no case stores a state (all fail at the first
             # stage start): every field still gets its shape and dtype.
-            self.capacity = max(needed, 16)
+            self.capacity = max(needed, 8)
             self.arrays = {
                 key: self._blank((self.size, self.capacity) + value.shape[1:], value.dtype)
                 for key, value in values.items()
@@ -316,7 +323,7 @@ class _Recorder:
         """Create the arrays (if not yet) for ``fields``: name -> (shape after the case
         and step axes, dtype), for a writer that fills them itself."""
         if self.arrays is None:
-            self.capacity = 16
+            self.capacity = 8
             self.arrays = {
                 key: self._blank((self.size, self.capacity) + shape, dtype) for key, (shape, dtype) in fields.items()
             }
@@ -392,24 +399,23 @@ class CaseResult:
 
 
 def _empty_events(size: int, n: int) -> dict[str, dict[str, np.ndarray]]:
-    def table() -> dict[str, np.ndarray]:
-        return {
-            "found": np.zeros(size, dtype=bool),
-            "s": np.full(size, np.nan),
-            "s_lower": np.full(size, np.nan),
-            "s_upper": np.full(size, np.nan),
-            "stage": np.full(size, -1, dtype=int),
-            "lam": np.full(size, np.nan),
-            "u": np.full((size, n), np.nan),
-            "F": np.full((size, n), np.nan),
-            "l": np.full(size, np.nan),
-            "alpha": np.full(size, np.nan),
-            "N": np.full(size, np.nan),
-            "T": np.full(size, np.nan),
-            "K": np.full((size, n, n), np.nan),
-        }
+    """Per event name, its table of first occurrences (nothing found yet).
 
-    return {name: table() for name in EVENTS}
+    Each field is one block over the events, each table holding a contiguous
+    row of it (a dozen allocations for the lot, not six dozen).
+    """
+    shapes = {
+        "found": ((size,), False), "s": ((size,), np.nan), "s_lower": ((size,), np.nan),
+        "s_upper": ((size,), np.nan), "stage": ((size,), -1), "lam": ((size,), np.nan),
+        "u": ((size, n), np.nan), "F": ((size, n), np.nan), "l": ((size,), np.nan),
+        "alpha": ((size,), np.nan), "N": ((size,), np.nan), "T": ((size,), np.nan),
+        "K": ((size, n, n), np.nan),
+    }
+    blocks = {
+        key: np.full((len(EVENTS), *shape), blank, dtype=type(blank))
+        for key, (shape, blank) in shapes.items()
+    }
+    return {name: {key: block[e] for key, block in blocks.items()} for e, name in enumerate(EVENTS)}
 
 
 @dataclass
@@ -783,7 +789,8 @@ class _BatchStepper:
         self.stage_index = np.zeros(size, dtype=int)
         self.status = np.full(size, RUNNING, dtype=object)
         self.message = np.full(size, "", dtype=object)
-        self.step_size = np.full(size, options.initial_step)
+        auto = isinstance(options.initial_step, str) and options.initial_step == AUTO
+        self.step_size = np.full(size, np.nan if auto else float(options.initial_step))
         self.arclength = np.zeros(size)
         self.accepted = np.zeros(size, dtype=int)
         self.rejected = np.zeros(size, dtype=int)
@@ -967,6 +974,8 @@ class _BatchStepper:
         """
         nominal = self._resolve(held, index)
         mismatch = np.abs(nominal - value) > 1e-9 * (1 + np.abs(nominal))
+        if not mismatch.any():
+            return mismatch
         hint = np.where(
             (self.stages.secondary_state[index] & 3) != 0,
             " (secondary-contact springs already act at this state: with "
@@ -1015,9 +1024,10 @@ class _BatchStepper:
         return np.full(index.size, float(value))
 
     def _start_stage(self, index: np.ndarray) -> None:
-        """Cases ``index`` start their (set up) stage: dy/ds, indicators, state stored, turn."""
+        """Cases ``index`` start their (set up) stage: dy/ds, indicators, state stored, turn;
+        the first step length where it is still to be estimated."""
         if self.compiled is not None:  # no cycle stage there: no turn to start
-            self.compiled.start(self, index)
+            self.compiled.start(self, index)  # estimates the first steps too
             return
         batch, stage, y = self.batch.take(index), self.stages.take(index), self.y[index]
         dy, aux = _rhs(batch, stage, y, self.layout)
@@ -1025,6 +1035,24 @@ class _BatchStepper:
         self.indicators[index] = _indicators(batch, stage, y, aux, self.layout)
         self.record(index, y, aux)
         self.turns.start(index, self.y[index, self.layout.work], aux.evaluation)
+        self._estimate_first_steps(index[np.isnan(self.step_size[index])])
+
+    @property
+    def probe_step(self) -> float:
+        """The probe step of the first-step estimate: min(1e-3, max_step)."""
+        return min(1e-3, self.options.max_step)
+
+    def _estimate_first_steps(self, index: np.ndarray) -> None:
+        """First step lengths of cases ``index`` (``initial_step = "auto"``): Hairer's
+        estimate (:func:`~ncstab.paths.integrator.initial_step_size`) from a probe step
+        along dy/ds."""
+        if index.size == 0:
+            return
+        probe = self.probe_step
+        y0, f0 = self.y[index], self.derivative[index]
+        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+            f1, _ = _rhs(self.batch.take(index), self.stages.take(index), y0 + probe * f0, self.layout)
+        self.step_size[index] = initial_step_size(y0, f0, f1, probe, self.options.rtol, self.options.atol)
 
     # --- one pass of the loop --------------------------------------------------------------------
 

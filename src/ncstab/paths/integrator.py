@@ -12,7 +12,17 @@ from typing import Callable
 import numpy as np
 from scipy.integrate._ivp import dop853_coefficients as dop
 
-__all__ = ["END_STAGE", "combine_stages", "dop853_step", "dense_output", "evaluate_dense", "error_norm", "ERROR_EXPONENT", "step_factor"]
+__all__ = [
+    "END_STAGE",
+    "ERROR_EXPONENT",
+    "combine_stages",
+    "dense_output",
+    "dop853_step",
+    "error_norm",
+    "evaluate_dense",
+    "initial_step_size",
+    "step_factor",
+]
 
 _A = dop.A[: dop.N_STAGES, : dop.N_STAGES]
 _B = dop.B
@@ -37,6 +47,57 @@ def step_factor(err: np.ndarray) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):
         factor = np.clip(0.9 / np.sqrt(np.sqrt(np.sqrt(err))), 0.2, 10.0)
     return np.where(err == 0, 10.0, factor)
+
+
+def initial_step_size(
+    y0: np.ndarray,
+    f0: np.ndarray,
+    f1: np.ndarray,
+    probe: float,
+    rtol: float,
+    atol: float,
+) -> np.ndarray:
+    """First step length of each case: Hairer's estimate from a probe step.
+
+    Hairer, Norsett & Wanner (1993, Sect. II.4; the starting-step algorithm of
+    ``scipy.integrate.solve_ivp``) with the probe step ``probe`` given, not
+    guessed from |y0| (a path starts at the undeformed state y0 = 0, where the
+    guess falls back to 1e-6 and the estimate is capped at 1e-4):
+
+        d1 = ||f0||,  d2 = ||f1 - f0|| / probe,  h1 = (0.01 / max(d1, d2))^(1/8),
+        h = min(100 probe, h1)
+
+    in the RMS norm scaled by ``atol + rtol |y0|``; h1 is the step whose
+    leading local error term, for a method of order 7 (the exponent of the
+    step-size control, :data:`ERROR_EXPONENT`), is about 1 % of the tolerance.
+    Where d1 and d2 are both below 1e-15, h = max(1e-6, 1e-3 probe); where
+    they are not finite, the probe itself.
+
+    Parameters
+    ----------
+    y0
+        ``(B, m)`` states at the start.
+    f0, f1
+        ``(B, m)`` dy/ds at ``y0`` and at ``y0 + probe f0``.
+    probe
+        The probe step (> 0).
+    rtol, atol
+        The step's tolerances.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(B,)`` step lengths.  The eighth root is taken as three square
+        roots, as in :func:`step_factor` (the same on every processor).
+    """
+    scale = atol + np.abs(y0) * rtol
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        d1 = np.sqrt(np.mean(np.square(f0 / scale), axis=-1))
+        d2 = np.sqrt(np.mean(np.square((f1 - f0) / scale), axis=-1)) / probe
+        largest = np.maximum(d1, d2)
+        h1 = np.sqrt(np.sqrt(np.sqrt(0.01 / largest)))
+    h1 = np.where(largest <= 1e-15, max(1e-6, 1e-3 * probe), h1)
+    return np.where(np.isfinite(largest), np.minimum(100 * probe, h1), probe)
 
 
 def combine_stages(coefficients: np.ndarray, stages: np.ndarray) -> np.ndarray:

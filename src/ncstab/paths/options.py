@@ -6,10 +6,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["BACKENDS", "PathOptions", "SystemSpec", "SECONDARY_CONTACT_MODES", "NORMAL_MODES"]
+__all__ = ["AUTO", "BACKENDS", "PathOptions", "SystemSpec", "SECONDARY_CONTACT_MODES", "NORMAL_MODES"]
 
 SECONDARY_CONTACT_MODES = ("activate", "ignore", "stop")
 NORMAL_MODES = ("deformable", "rigid")
+#: PathOptions.initial_step estimated per case.
+AUTO = "auto"
 #: Steppers of the path engine (PathOptions.backend).
 BACKENDS = ("numpy", "compiled")
 
@@ -29,7 +31,12 @@ class PathOptions:
         manifold stops, for laws with a total form.
     newton_max_iter
         Newton iterations before a step is rejected and retried smaller.
-    initial_step, min_step, max_step
+    initial_step
+        First arclength step of every case: ``"auto"`` (default) estimates
+        it per case from the tolerances and a probe step of
+        ``min(1e-3, max_step)`` (Hairer's starting-step algorithm,
+        :func:`ncstab.paths.integrator.initial_step_size`); a number fixes it.
+    min_step, max_step
         Arclength step bounds.  ``max_step`` also bounds how far apart two
         stored states can be (figure resolution, event detection).
     max_steps
@@ -49,7 +56,7 @@ class PathOptions:
     atol: float = 1e-12
     newton_tol: float = 1e-12
     newton_max_iter: int = 12
-    initial_step: float = 1e-3
+    initial_step: float | str = "auto"
     min_step: float = 1e-12
     max_step: float = 0.02
     max_steps: int = 20_000
@@ -59,9 +66,12 @@ class PathOptions:
     def __post_init__(self) -> None:
         for name in ("rtol", "atol", "newton_tol", "initial_step", "min_step", "max_step", "event_tol"):
             value = getattr(self, name)
+            if name == "initial_step" and isinstance(value, str) and value == AUTO:
+                continue
             number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
             if not (number and 0 < value < float("inf")):
-                raise ValueError(f"PathOptions.{name} must be a positive finite number, got {value!r}")
+                allowed = ' or "auto"' if name == "initial_step" else ""
+                raise ValueError(f"PathOptions.{name} must be a positive finite number{allowed}, got {value!r}")
         for name in ("newton_max_iter", "max_steps"):
             value = getattr(self, name)
             whole = isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))

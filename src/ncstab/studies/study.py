@@ -605,11 +605,13 @@ def _options_section(data: Mapping[str, Any], errors: _Errors) -> PathOptions:
         field = f"options.{name}"
         default = _OPTION_FIELDS[name].default
         is_int = isinstance(default, int)
-        if isinstance(default, str):
+        if name == "initial_step" and isinstance(raw, str):  # a number, or "auto"
+            value: Any = raw
+        elif isinstance(default, str) and name != "initial_step":
             if not isinstance(raw, str):
                 errors.add(field, f"expected a string, got {_toml_type(raw)} ({raw!r})")
                 continue
-            value: Any = raw
+            value = raw
         elif is_int:
             if isinstance(raw, bool) or not isinstance(raw, int):
                 errors.add(field, f"expected a whole number, got {_toml_type(raw)} ({raw!r})")

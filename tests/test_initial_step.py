@@ -1,0 +1,182 @@
+"""The first step of a path (``PathOptions.initial_step = "auto"``, the default).
+
+- :func:`ncstab.paths.integrator.initial_step_size` is Hairer's starting-step
+  algorithm: it equals scipy's own implementation (``select_initial_step``,
+  used by ``solve_ivp``) wherever scipy's probe step is the one given.
+- In the engine: both steppers start every case with the same estimate (bit
+  for bit), a number still fixes the first step, and the estimate saves steps
+  on the uniaxial Cundall--Strack sweep without changing where the paths end.
+- Study files take ``initial_step = "auto"`` or a number, and name the field
+  otherwise.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.integrate._ivp.common import select_initial_step
+
+import ncstab
+from ncstab.paths import PathOptions, SystemSpec
+from ncstab.paths.compiled import NUMBA_AVAILABLE
+from ncstab.paths.integrator import initial_step_size
+from ncstab.studies import StudyFileError
+from ncstab.studies.study import parse_study
+
+#: DOP853's error estimator order in scipy (the exponent 1/8 of the estimate).
+ORDER = 7
+#: scipy raises to the power 1/8 where we take three square roots, and takes
+#: the RMS norm as ||x|| / sqrt(n) where we take sqrt(mean(x^2)): a few ulps each.
+ROOT_RTOL = 1e-14
+
+UNIAXIAL = [{"hold": {"F2": 0.0}, "drive": {"D1": 0.2}}]
+SWEEP = {"gamma": list(np.linspace(0.1, 2.0, 6)), "alpha0": list(np.linspace(0.3, 1.2, 6))}
+
+
+def _rhs(matrix: np.ndarray):
+    """A smooth nonlinear right-hand side: f(y) = sin(A y) + 0.3 (1, ..., 1)."""
+
+    def f(t: float, y: np.ndarray) -> np.ndarray:
+        return np.sin(matrix @ y) + 0.3
+
+    return f
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_the_estimate_is_scipys_at_an_undeformed_start(seed):
+    # y0 = 0: scipy probes with h0 = 1e-6 (its guess 0.01 |y0| / |f0| is 0 there).
+    rng = np.random.default_rng(seed)
+    m = 5
+    f = _rhs(rng.normal(scale=rng.uniform(0.1, 50), size=(m, m)))
+    y0 = np.zeros(m)
+    f0 = f(0.0, y0)
+    rtol, atol = 10.0 ** rng.uniform(-12, -4), 10.0 ** rng.uniform(-14, -6)
+    expected = select_initial_step(f, 0.0, y0, np.inf, np.inf, f0, 1.0, ORDER, rtol, atol)
+    probe = 1e-6
+    ours = initial_step_size(y0[None], f0[None], f(0.0, y0 + probe * f0)[None], probe, rtol, atol)
+    np.testing.assert_allclose(ours, [expected], rtol=ROOT_RTOL, atol=0)
+
+
+def test_the_estimate_is_scipys_away_from_zero_batched():
+    # y0 != 0: scipy probes with 0.01 |y0| / |f0|; given that probe, every case of a
+    # batch gets scipy's estimate, including the cap at 100 probes.
+    rng = np.random.default_rng(42)
+    m, size = 4, 200
+    rows = []
+    for _ in range(size):
+        f = _rhs(rng.normal(scale=rng.uniform(0.01, 100), size=(m, m)))
+        y0 = rng.normal(size=m) * 10.0 ** rng.uniform(-3, 1)
+        f0 = f(0.0, y0)
+        rtol, atol = 1e-8, 1e-10
+        scale = atol + np.abs(y0) * rtol
+        probe = 0.01 * np.linalg.norm(y0 / scale) / np.linalg.norm(f0 / scale)
+        expected = select_initial_step(f, 0.0, y0, np.inf, np.inf, f0, 1.0, ORDER, rtol, atol)
+        rows.append((y0, f0, f(0.0, y0 + probe * f0), probe, expected))
+    y0, f0, f1, probe, expected = (np.array(column) for column in zip(*rows))
+    capped = 0
+    for k in range(size):  # the probe differs per case: one call each, on a one-case batch
+        ours = initial_step_size(y0[k : k + 1], f0[k : k + 1], f1[k : k + 1], probe[k], 1e-8, 1e-10)
+        np.testing.assert_allclose(ours, [expected[k]], rtol=ROOT_RTOL, atol=0)
+        capped += bool(np.isclose(expected[k], 100 * probe[k], rtol=1e-15))
+    assert 0 < capped < size  # both branches of the min were exercised
+    # and a batch with one probe equals its cases taken one by one
+    batch = initial_step_size(y0, f0, f1, 1e-3, 1e-8, 1e-10)
+    singles = [initial_step_size(y0[k : k + 1], f0[k : k + 1], f1[k : k + 1], 1e-3, 1e-8, 1e-10)[0] for k in range(size)]
+    np.testing.assert_array_equal(batch, singles)
+
+
+def test_the_estimate_of_a_still_or_broken_start():
+    zero = np.zeros((1, 3))
+    # f = 0 everywhere: scipy's fallback max(1e-6, 1e-3 probe), at most 100 probes
+    expected = select_initial_step(lambda t, y: np.zeros(3), 0.0, zero[0], np.inf, np.inf, zero[0], 1.0, ORDER, 1e-6, 1e-9)
+    assert initial_step_size(zero, zero, zero, 1e-6, 1e-6, 1e-9)[0] == expected == 1e-6
+    assert initial_step_size(zero, zero, zero, 1e-3, 1e-6, 1e-9)[0] == 1e-6
+    # a right-hand side that is not finite at the probe: the probe itself
+    f0 = np.ones((1, 3))
+    assert initial_step_size(zero, f0, np.full((1, 3), np.nan), 1e-3, 1e-6, 1e-9)[0] == 1e-3
+
+
+def _first_steps(path) -> np.ndarray:
+    s = path.results[0].steps["s"]
+    return s[:, 1] - s[:, 0]
+
+
+def _follow(options: PathOptions, law: str = "cundall_strack", parameters=None):
+    return ncstab.follow(SystemSpec(secondary_contacts="ignore"), law, UNIAXIAL, parameters or SWEEP, options)
+
+
+def test_a_number_still_fixes_the_first_step():
+    path = _follow(PathOptions(initial_step=0.005, max_step=1.0))
+    assert np.all(path.results[0].counters["rejected"] >= 0)
+    np.testing.assert_array_equal(_first_steps(path), 0.005)  # 0.005 is accepted in every case
+
+
+def test_auto_saves_steps_and_ends_where_a_small_fixed_start_does():
+    options = PathOptions(max_step=1.0)
+    auto = _follow(options)
+    fixed = _follow(PathOptions(initial_step=1e-3, max_step=1.0))
+    tiny = _follow(PathOptions(initial_step=1e-5, max_step=1.0))
+    first = _first_steps(auto)
+    # the estimate is an actual estimate: within Hairer's bounds, not the probe
+    assert np.all((first > 1e-3) & (first <= 0.1))
+    attempts = {
+        name: int((p.results[0].counters["accepted"] + p.results[0].counters["rejected"]).sum())
+        for name, p in (("auto", auto), ("fixed", fixed))
+    }
+    assert attempts["auto"] < attempts["fixed"]
+    # Where the paths end: the same to the local error tolerance (rtol 1e-10) times
+    # the few steps taken; 1e-9 on O(1) values.
+    for other in (fixed, tiny):
+        for name in ("u", "F"):
+            end = np.take_along_axis(
+                auto.results[0].steps[name], (auto.results[0].n_steps - 1)[:, None, None], axis=1
+            )
+            reference = np.take_along_axis(
+                other.results[0].steps[name], (other.results[0].n_steps - 1)[:, None, None], axis=1
+            )
+            np.testing.assert_allclose(end, reference, rtol=0, atol=1e-9)
+
+
+@pytest.mark.skipif(not NUMBA_AVAILABLE, reason="the compiled stepper needs numba (ncstab[compiled])")
+@pytest.mark.parametrize("law", ["cundall_strack", "weakly_hypoelastic", "mcnamara", "turco"])
+def test_both_steppers_start_with_the_same_estimate(law):
+    parameters = {"gamma": [0.5, 2.0], "alpha0": [0.5, 0.9]}
+    numpy_path = _follow(PathOptions(max_step=1.0), law, parameters)
+    compiled_path = _follow(PathOptions(max_step=1.0, backend="compiled"), law, parameters)
+    np.testing.assert_array_equal(_first_steps(compiled_path), _first_steps(numpy_path))
+
+
+@pytest.mark.parametrize(("value", "expected"), [('"auto"', "auto"), ("0.01", 0.01), ("1e-4", 1e-4)])
+def test_a_study_file_takes_auto_or_a_number(value, expected):
+    study = parse_study(_study(value))
+    assert study.options.initial_step == expected
+
+
+@pytest.mark.parametrize("value", ['"small"', "-1.0", "true"])
+def test_a_study_file_names_a_bad_initial_step(value):
+    with pytest.raises(StudyFileError, match=r"options\.initial_step"):
+        parse_study(_study(value))
+
+
+def _study(value: str) -> str:
+    return f"""
+[study]
+name = "first_step"
+
+[system]
+name = "diamond"
+alpha0 = 0.8
+
+[laws]
+names = ["cundall_strack"]
+
+[parameters]
+gamma = 1.0
+
+[[loading]]
+hold = {{ F2 = 0.0 }}
+drive = {{ D1 = 0.1 }}
+
+[options]
+initial_step = {value}
+"""
