@@ -161,6 +161,10 @@ def main() -> None:
     for name, value in (("numpy", engine_time), ("compiled", compiled_time)):
         print(f"ratio baseline / engine ({name:8s})        {baseline_time / value:8.1f} x (no events in the baseline)")
         print(f"ratio baseline+events / engine ({name:8s}) {baseline_events_time / value:8.1f} x (same job)")
+    per_run = [b / c for b, c in zip(times["baseline"], times["compiled"])]
+    print(f"ratio baseline / engine (compiled), run by run: {', '.join(f'{r:.0f}' for r in per_run)} x")
+    attempts = path.results[0].counters["accepted"] + path.results[0].counters["rejected"]
+    print(f"step attempts per case: {attempts.mean():.2f} (accepted {path.results[0].counters['accepted'].mean():.2f})")
     located = int(path.results[0].counters["located"].sum())
     print(f"events located by the engine (the baseline locates none): {located}")
 

@@ -81,12 +81,12 @@ class CompiledStages:
         found = np.ascontiguousarray(np.stack([stepper.events[name]["found"] for name in EVENTS]))
         values = np.empty((len(EVENTS), size, len(EVENT_FIELDS)))  # read where found only
         stage = np.stack([stepper.events[name]["stage"] for name in EVENTS]).astype(np.int64)
-        stages = stepper.stages
         while True:
             active = np.flatnonzero(stepper.status == RUNNING)
             if active.size == 0:
                 break
             for k in np.unique(stepper.stage_index[active]):
+                stages = stepper.stages  # (entering a stage may replace it)
                 cases = active[stepper.stage_index[active] == k]
                 recorder = stepper.recorder
                 recorder.reserve(int(recorder.count[cases].max()) + STEPS_PER_CALL)

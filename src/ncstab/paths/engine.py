@@ -398,6 +398,18 @@ class CaseResult:
     cycles: dict[str, np.ndarray] = field(default_factory=dict)
 
 
+def _as_strings(values: np.ndarray) -> np.ndarray:
+    """``values.astype(str)`` for an object array of strings: by distinct value where
+    there are few (statuses, messages: 20x faster than converting every entry)."""
+    distinct = set(values.tolist())
+    if values.size == 0 or len(distinct) > 32:
+        return values.astype(str)
+    strings = np.empty(values.shape, dtype=f"<U{max(1, *map(len, distinct))}")
+    for text in distinct:
+        strings[values == text] = text
+    return strings
+
+
 def _empty_events(size: int, n: int) -> dict[str, dict[str, np.ndarray]]:
     """Per event name, its table of first occurrences (nothing found yet).
 
@@ -787,8 +799,10 @@ class _BatchStepper:
         self.y[:, layout.v] = batch.initial_state()
         self.derivative = np.full((size, layout.size), np.nan)
         self.stage_index = np.zeros(size, dtype=int)
-        self.status = np.full(size, RUNNING, dtype=object)
-        self.message = np.full(size, "", dtype=object)
+        self.status = np.empty(size, dtype=object)  # (np.full is 20x slower for objects)
+        self.status[:] = RUNNING
+        self.message = np.empty(size, dtype=object)
+        self.message[:] = ""
         auto = isinstance(options.initial_step, str) and options.initial_step == AUTO
         self.step_size = np.full(size, np.nan if auto else float(options.initial_step))
         self.arclength = np.zeros(size)
@@ -816,8 +830,8 @@ class _BatchStepper:
         return CaseResult(
             steps=steps,
             n_steps=counts,
-            status=self.status.astype(str),
-            message=self.message.astype(str),
+            status=_as_strings(self.status),
+            message=_as_strings(self.message),
             events=self.events,
             counters={"accepted": self.accepted, "rejected": self.rejected, "located": self.located},
             cycles=self.turns.tables,
@@ -885,6 +899,14 @@ class _BatchStepper:
                 self._start_stage(index[go])
             index, k = index[zero_length], k + 1
 
+    def _every_case(self, index: np.ndarray) -> bool:
+        """Whether ``index`` is every case, in order."""
+        return index.size == self.size and bool(np.all(index == np.arange(self.size)))
+
+    def _batch_of(self, index: np.ndarray) -> CaseBatch:
+        """The cases ``index`` as a batch (the batch itself where that is every case)."""
+        return self.batch if self._every_case(index) else self.batch.take(index)
+
     def _set_up_stage(self, index: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
         """Set up stage k for cases ``index`` from their current states (stage arrays, lambda).
 
@@ -897,7 +919,7 @@ class _BatchStepper:
         self.stage_index[index] = k
         v, internal = self.y[index, self.layout.v], self.y[index, self.layout.internal]
         secondary_state = self.stages.secondary_state[index]
-        evaluation = self.batch.take(index).evaluate(v, internal, secondary_state)
+        evaluation = self._batch_of(index).evaluate(v, internal, secondary_state)
         u = evaluation.displacements
         current = {name: u[:, i] for i, name in enumerate(self.dof_names)}
         current.update({name: evaluation.forces[:, i] for i, name in enumerate(self.force_names)})
@@ -920,7 +942,10 @@ class _BatchStepper:
         arrays.orientation = np.where(np.abs(dlam) > 0, np.sign(dlam), 1.0) * np.where(
             arrays.target_sign == 0, 1.0, arrays.target_sign
         )
-        self.stages.put(index, arrays)
+        if self._every_case(index):
+            self.stages = arrays
+        else:
+            self.stages.put(index, arrays)
         for reason in np.unique(reasons[bad]):
             which = index[bad & (reasons == reason)]
             self.fail(which, "singular_control" if "singular" in reason else "bad_stage_start", reason)
@@ -1029,7 +1054,7 @@ class _BatchStepper:
         if self.compiled is not None:  # no cycle stage there: no turn to start
             self.compiled.start(self, index)  # estimates the first steps too
             return
-        batch, stage, y = self.batch.take(index), self.stages.take(index), self.y[index]
+        batch, stage, y = self._batch_of(index), self.stages.take(index), self.y[index]
         dy, aux = _rhs(batch, stage, y, self.layout)
         self.derivative[index] = dy
         self.indicators[index] = _indicators(batch, stage, y, aux, self.layout)
@@ -1051,7 +1076,7 @@ class _BatchStepper:
         probe = self.probe_step
         y0, f0 = self.y[index], self.derivative[index]
         with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
-            f1, _ = _rhs(self.batch.take(index), self.stages.take(index), y0 + probe * f0, self.layout)
+            f1, _ = _rhs(self._batch_of(index), self.stages.take(index), y0 + probe * f0, self.layout)
         self.step_size[index] = initial_step_size(y0, f0, f1, probe, self.options.rtol, self.options.atol)
 
     # --- one pass of the loop --------------------------------------------------------------------
