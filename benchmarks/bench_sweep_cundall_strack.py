@@ -17,7 +17,12 @@ the same steps; needs ``pip install 'ncstab[compiled]'``).  Its compilation
 apart.
 
 Prints the times (the median of ``--repeat`` runs of each method, taken in
-turn in the same process), the ratios of those medians, and the accuracy of each.  The engine also
+turn in the same process), the ratios of those medians, and the accuracy of each.
+Each engine time is the mean of a few sweeps run back to back (10 compiled,
+2 numpy: ``--compiled-runs``, ``--numpy-runs``), so that every timed window
+lasts about 0.3 s or more, like one run of the loop (about 3 s): a pause of
+the machine of a few milliseconds would otherwise weigh a hundred times more
+on a 30 ms sweep than on the loop.  The engine also
 locates every event (the secondary-contact gaps reach zero in many cases);
 a second baseline does that job too, with solve_ivp event functions.  This is a benchmark,
 not a test: nothing here asserts a time.
@@ -106,6 +111,8 @@ def main() -> None:
     parser.add_argument("--cases-per-side", type=int, default=64)
     parser.add_argument("--check", type=int, default=128, help="cases checked against the tight reference")
     parser.add_argument("--repeat", type=int, default=1, help="runs of each method; the median is reported")
+    parser.add_argument("--numpy-runs", type=int, default=2, help="back-to-back sweeps per timing, numpy stepper")
+    parser.add_argument("--compiled-runs", type=int, default=10, help="back-to-back sweeps per timing, compiled")
     args = parser.parse_args()
     side = args.cases_per_side
     gamma = np.linspace(0.1, 2.0, side)
@@ -123,13 +130,18 @@ def main() -> None:
 
     baseline_rtol, baseline_atol = 1e-10, 1e-12
     times: dict[str, list[float]] = {"engine": [], "compiled": [], "baseline": [], "baseline_events": []}
+    def timed_engine(engine_options: PathOptions, runs: int) -> tuple[float, tuple]:
+        """Mean time of ``runs`` back-to-back sweeps (a timed window of ~0.3 s or more)."""
+        start = time.perf_counter()
+        for _ in range(runs):
+            result = run_engine(gamma, alpha0, engine_options)
+        return (time.perf_counter() - start) / runs, result
+
     for _ in range(args.repeat):  # interleaved, so a slow spell of the machine hits every method
-        start = time.perf_counter()
-        engine, path = run_engine(gamma, alpha0, options)
-        times["engine"].append(time.perf_counter() - start)
-        start = time.perf_counter()
-        fast, fast_path = run_engine(gamma, alpha0, compiled)
-        times["compiled"].append(time.perf_counter() - start)
+        elapsed, (engine, path) = timed_engine(options, args.numpy_runs)
+        times["engine"].append(elapsed)
+        elapsed, (fast, fast_path) = timed_engine(compiled, args.compiled_runs)
+        times["compiled"].append(elapsed)
         start = time.perf_counter()
         baseline = run_baseline(gg, aa, baseline_rtol, baseline_atol)
         times["baseline"].append(time.perf_counter() - start)
