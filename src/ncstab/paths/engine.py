@@ -919,7 +919,8 @@ class _BatchStepper:
         self.stage_index[index] = k
         v, internal = self.y[index, self.layout.v], self.y[index, self.layout.internal]
         secondary_state = self.stages.secondary_state[index]
-        evaluation = self._batch_of(index).evaluate(v, internal, secondary_state)
+        every = self._every_case(index)
+        evaluation = (self.batch if every else self.batch.take(index)).evaluate(v, internal, secondary_state)
         u = evaluation.displacements
         current = {name: u[:, i] for i, name in enumerate(self.dof_names)}
         current.update({name: evaluation.forces[:, i] for i, name in enumerate(self.force_names)})
@@ -942,7 +943,7 @@ class _BatchStepper:
         arrays.orientation = np.where(np.abs(dlam) > 0, np.sign(dlam), 1.0) * np.where(
             arrays.target_sign == 0, 1.0, arrays.target_sign
         )
-        if self._every_case(index):
+        if every:
             self.stages = arrays
         else:
             self.stages.put(index, arrays)

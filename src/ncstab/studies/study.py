@@ -603,16 +603,13 @@ def _options_section(data: Mapping[str, Any], errors: _Errors) -> PathOptions:
         if name not in _OPTION_FIELDS:
             continue
         field = f"options.{name}"
-        default = _OPTION_FIELDS[name].default
-        is_int = isinstance(default, int)
-        if name == "initial_step" and isinstance(raw, str):  # a number, or "auto"
-            value: Any = raw
-        elif isinstance(default, str) and name != "initial_step":
-            if not isinstance(raw, str):
-                errors.add(field, f"expected a string, got {_toml_type(raw)} ({raw!r})")
-                continue
-            value = raw
-        elif is_int:
+        kinds = str(_OPTION_FIELDS[name].type).split(" | ")  # e.g. ["float", "str"]: a number or a word
+        if isinstance(raw, str) and "str" in kinds:
+            value: Any = raw  # which words are allowed: PathOptions says
+        elif kinds == ["str"]:
+            errors.add(field, f"expected a string, got {_toml_type(raw)} ({raw!r})")
+            continue
+        elif kinds == ["int"]:
             if isinstance(raw, bool) or not isinstance(raw, int):
                 errors.add(field, f"expected a whole number, got {_toml_type(raw)} ({raw!r})")
                 continue
