@@ -1,6 +1,6 @@
 """The compiled (numba) stepper, ``PathOptions(backend="compiled")``.
 
-The compiled stepper mirrors the numpy stepper (:class:`ncstab.paths.engine._BatchStepper`)
+The compiled stepper mirrors the numpy stepper (:class:`ncstab.paths.stepper.BatchStepper`)
 step for step: same DOP853 tableau, step-size control, Newton projection,
 Illinois event location, first-event tables, stops and failures.  It is checked
 
@@ -35,7 +35,6 @@ pytest.importorskip("numba")
 from ncstab.paths import PathOptions, SystemSpec, follow
 from ncstab.paths.api import ParameterGrid, case_batch
 from ncstab.paths.programme import parse_programme
-from ncstab.systems import SYSTEMS
 from ncstab.systems.closed_forms import mcnamara_load_rotation
 
 ALPHA0 = math.pi / 4
@@ -303,8 +302,8 @@ def assert_results_identical(reference, value) -> None:
 
 def batch_and_programme(spec: SystemSpec, law: str, programme, parameters):
     """The engine's CaseBatch and parsed programme, as ``follow`` builds them."""
-    system_class = SYSTEMS[spec.name]
-    parsed = parse_programme(programme, system_class.dof_names, system_class.force_names)
+    definition = spec.definition
+    parsed = parse_programme(programme, definition.dofs, definition.forces, definition.load_parameter)
     grid = ParameterGrid.from_mapping(parameters)
     return case_batch(law, spec, grid.case_values(), grid.size), parsed
 

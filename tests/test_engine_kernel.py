@@ -22,7 +22,10 @@ from ncstab.laws.registry import law_definition, make_law
 from ncstab.operators.tangent import compile_state_kernel, tangent_operator_at_contact_state
 from ncstab.paths import PathOptions, SystemSpec
 from ncstab.paths.api import case_batch
-from ncstab.paths.engine import _Layout, _project, _Recorder, _rhs
+from ncstab.paths.projection import project as _project
+from ncstab.paths.recorder import Recorder as _Recorder
+from ncstab.paths.rhs import StateLayout as _Layout
+from ncstab.paths.rhs import state_derivative as _rhs
 from ncstab.paths.model import NORMAL_OPEN
 from ncstab.paths.tangent_field import StageArrays
 from ncstab.symbolic.compile import compile_law

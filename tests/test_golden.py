@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 import xarray as xr
 
@@ -22,6 +23,50 @@ GOLDEN = Path(__file__).parent / "golden"
 STUDIES = sorted((GOLDEN / "studies").glob("*.toml"))
 #: Attributes that legitimately differ from run to run.
 VOLATILE = ("created",)
+
+#: Documented differences (CHANGELOG, general models): cases whose stored states
+#: differ from the golden archive, with why.  Each is compared on its end state
+#: (to ``END_STATE_TOL``) instead of bit for bit; every other case of the study is
+#: identical.
+#:
+#: * Turco, gamma = 2, F2* = 0 (stability diagram): at D1* = 0.5607 the path meets
+#:   a singular point of its mixed control (the cofactor tangent vanishes: F1*
+#:   stays at 2 sqrt 2 while D1* moves on, det K = 0 along the way).  The engine
+#:   before the general model crept through it with some thirty tiny steps (the
+#:   tangent reversing in every trial step); the engine now keeps the direction of
+#:   motion across it (the tangent oriented by continuity) and crosses in a few
+#:   steps.  Both reach the same end state.
+KNOWN_DIFFERENCES = {
+    "stability_diagram_reduced": [{"law": "turco", "gamma": 2.0, "F2_lateral": 0.0}],
+}
+#: The end states of a known difference agree to rounding (both paths are projected
+#: onto equilibrium to newton_tol = 1e-12).
+END_STATE_TOL = 1e-12
+
+
+def _documented_changes(golden: xr.Dataset, computed: xr.Dataset) -> xr.Dataset:
+    """The golden archive with the changes CHANGELOG.md documents applied (general models):
+
+    * the ``dof``, ``i`` and ``j`` coordinates hold the system's dof names
+      (``D1``, ``D2``) instead of 1, 2, with a ``force`` coordinate (``F1``,
+      ``F2``) along ``dof``;
+    * the ``law`` coordinate is an "interaction law" (springs have laws too);
+    * the attribute ``system_settings`` states the system's structural
+      settings (``reduction=symmetric``).
+
+    Only coordinates and attributes change: every variable's values are
+    compared as they are.
+    """
+    names = computed["dof"].values
+    changed = golden.assign_coords(
+        dof=("dof", names, computed["dof"].attrs),
+        i=("i", names, computed["i"].attrs),
+        j=("j", names, computed["j"].attrs),
+        force=("dof", computed["force"].values, computed["force"].attrs),
+    )
+    changed["law"].attrs = dict(computed["law"].attrs)
+    changed.attrs["system_settings"] = computed.attrs["system_settings"]
+    return changed
 
 
 def _without_volatile(dataset: xr.Dataset) -> xr.Dataset:
@@ -36,4 +81,27 @@ def test_a_study_gives_its_golden_archive(study_file: Path) -> None:
     study = load_study(study_file)
     golden = open_study(GOLDEN / f"{study.name}.nc")
     computed = normalise_dataset(run_study(study))
+    golden = _documented_changes(golden, computed)
+    for case in KNOWN_DIFFERENCES.get(study.name, []):
+        old, new = golden.sel(case), computed.sel(case)
+        for name in ("u", "F"):
+            last_old = old[name].isel(step=int(old["n_steps"]) - 1).values
+            last_new = new[name].isel(step=int(new["n_steps"]) - 1).values
+            np.testing.assert_allclose(last_new, last_old, rtol=0, atol=END_STATE_TOL)
+        assert str(new["status"].values) == str(old["status"].values)
+        golden, computed = _drop_case(golden, case), _drop_case(computed, case)
     xr.testing.assert_identical(_without_volatile(computed), _without_volatile(golden))
+
+
+def _drop_case(dataset: xr.Dataset, case: dict) -> xr.Dataset:
+    """The Dataset without the variables' values of one case (set to a fill value), and
+    without the step positions only that case reached."""
+    mask = xr.ones_like(dataset["n_steps"], dtype=bool)
+    for name, value in case.items():
+        mask = mask & (dataset[name] != value)
+    dataset = dataset.copy()
+    for name, variable in dataset.data_vars.items():
+        if set(mask.dims) <= set(variable.dims):
+            dataset[name] = variable.where(mask, other=variable.dtype.type(0) if variable.dtype.kind in "iub" else variable.dtype.type(0) if variable.dtype.kind == "f" else "")
+    longest = int(dataset["n_steps"].where(mask, 0).max())
+    return dataset.isel(step=slice(0, longest))

@@ -30,11 +30,12 @@ def _compiled(name: str, state: DiamondState):
 # --- catalogue ------------------------------------------------------------------------
 
 
-def test_catalogue_lists_the_four_seed_laws_and_their_modified_variants():
-    assert law_names() == list(BASE_LAWS)
+def test_catalogue_lists_the_four_seed_laws_their_modified_variants_and_the_spring_laws():
+    assert law_names() == list(BASE_LAWS) + ["linear_spring"]
     assert set(LAWS) == set(BASE_LAWS)
-    assert law_names(with_modifiers=True) == list(BASE_LAWS) + list(NO_TENSION_LAWS)
+    assert law_names(with_modifiers=True) == list(BASE_LAWS) + list(NO_TENSION_LAWS) + ["linear_spring"]
     assert set(MODIFIERS) == {"no_tension"}
+    assert law_definition("linear_spring").kind == "spring"
 
 
 @pytest.mark.parametrize("name", BASE_LAWS)

@@ -205,7 +205,7 @@ def test_load_rotation_draws_one_curve_per_case_with_its_valid_steps(uniaxial):
     case = case_data(uniaxial, "cundall_strack", gamma=2.0)
     line = paths[3]
     np.testing.assert_array_equal(line.get_xdata(), case["alpha"].values)
-    np.testing.assert_array_equal(line.get_ydata(), case["F"].sel(dof=1).values)
+    np.testing.assert_array_equal(line.get_ydata(), case["F"].sel(dof="D1").values)
     assert r"$\alpha$" in axes.get_xlabel() and "(rad)" in axes.get_xlabel()
     assert axes.get_ylabel() == r"$F_1^* = F_1/(2R\,k_n)$"
     # Colours: one per case, all different.
@@ -238,7 +238,7 @@ def test_load_rotation_overlays_eq48_on_the_hyperelastic_cases_only(uniaxial):
     case = case_data(uniaxial, "mcnamara", gamma=0.5)
     alpha = case["alpha"].values
     np.testing.assert_allclose(
-        case["F"].sel(dof=1).values, mcnamara_load_rotation(alpha, 0.5, ALPHA0), rtol=0, atol=1e-10
+        case["F"].sel(dof="D1").values, mcnamara_load_rotation(alpha, 0.5, ALPHA0), rtol=0, atol=1e-10
     )
 
 
@@ -288,8 +288,8 @@ def test_load_displacement_maps_the_closed_form_through_eq46(uniaxial):
 def test_limit_point_is_marked_where_it_was_located(preloaded):
     case = preloaded.isel(law=0)
     alpha = float(case["limit_point_alpha"])
-    F1 = float(case["limit_point_F"].sel(dof=1))
-    D1 = float(case["limit_point_u"].sel(dof=1))
+    F1 = float(case["limit_point_F"].sel(dof="D1"))
+    D1 = float(case["limit_point_u"].sel(dof="D1"))
     assert np.isfinite([alpha, F1, D1]).all()
     for plot, x in ((plot_load_rotation, alpha), (plot_load_displacement, D1)):
         figure = plot(preloaded)
@@ -306,7 +306,7 @@ def test_preloaded_overlay_is_eq53_over_the_last_stage_with_the_held_lateral_for
     axes = plot_load_rotation(preloaded).axes[0]
     case = case_data(preloaded, "mcnamara")
     last = case["stage"].values == case["stage"].values.max()
-    F2 = case["F"].sel(dof=2).values[last]
+    F2 = case["F"].sel(dof="D2").values[last]
     assert np.ptp(F2) < 1e-10 and F2[0] == pytest.approx(0.75, abs=1e-10)
     overlays = lines_with(axes, "closed_form:")
     assert len(overlays) == 2
@@ -328,14 +328,14 @@ def test_3d_figure_has_the_curve_events_and_closed_form(preloaded):
     (path,) = lines_with(axes, "path:")
     case = case_data(preloaded, "mcnamara")
     x, y, z = path.get_data_3d()
-    np.testing.assert_array_equal(x, case["u"].sel(dof=1).values)
+    np.testing.assert_array_equal(x, case["u"].sel(dof="D1").values)
     np.testing.assert_array_equal(y, case["alpha"].values)
-    np.testing.assert_array_equal(z, case["F"].sel(dof=1).values)
+    np.testing.assert_array_equal(z, case["F"].sel(dof="D1").values)
     (marker,) = lines_with(axes, "event:limit_point:")
     assert tuple(np.ravel(c)[0] for c in marker.get_data_3d()) == (
-        float(case["limit_point_u"].sel(dof=1)),
+        float(case["limit_point_u"].sel(dof="D1")),
         float(case["limit_point_alpha"]),
-        float(case["limit_point_F"].sel(dof=1)),
+        float(case["limit_point_F"].sel(dof="D1")),
     )
     assert lines_with(axes, "closed_form:-:")
     assert axes.get_zlabel() == r"$F_1^* = F_1/(2R\,k_n)$"
@@ -355,13 +355,13 @@ def test_stability_panels_show_the_indicators_and_their_zero_crossing(preloaded)
     for axes, name in zip(panels, ("det_K", "hill", "d2W")):
         (path,) = lines_with(axes, "path:")
         np.testing.assert_array_equal(path.get_ydata(), case[name].values)
-        np.testing.assert_array_equal(path.get_xdata(), case["u"].sel(dof=1).values)
+        np.testing.assert_array_equal(path.get_xdata(), case["u"].sel(dof="D1").values)
         assert any(list(line.get_ydata()) == [0.0, 0.0] for line in axes.get_lines())  # zero line
     # det K and the Hill eigenvalue vanish at the located limit point (hyperelastic:
     # K symmetric, the two coincide); the markers sit there.
     for axes in panels[:2]:
         (marker,) = lines_with(axes, "event:limit_point:")
-        assert marker.get_xdata()[0] == float(case["limit_point_u"].sel(dof=1))
+        assert marker.get_xdata()[0] == float(case["limit_point_u"].sel(dof="D1"))
         assert abs(marker.get_ydata()[0]) < 1e-8
     assert panels[2].get_ylim() == (-1.1, 1.1)
 

@@ -176,7 +176,7 @@ def test_a_missing_file_is_an_os_error(tmp_path):
         (("gamma = 0.5", "gamma = 0.5\nalpha0 = \"pi/2 + 1\""), "parameters.alpha0"),
         (('drive = { D1 = 0.05 }', 'drive = { D1 = "current" }'), "loading[1].drive.D1"),
         (('drive = { D1 = 0.05 }', 'drive = { D1 = true }'), "loading[1].drive.D1"),
-        (('drive = { D1 = 0.05 }', 'drive = { D1 = 0.05, D2 = 0.0 }'), "loading[1].drive"),
+        (('drive = { D1 = 0.05 }', 'drive = { D1 = 0.05, P = 1.0 }'), "loading[1].drive.P"),
         (('drive = { D1 = 0.05 }', 'drive = { D1 = 0.05 }\nhols = { F1 = 0 }'), "loading[1].hols"),
         (('drive = { D1 = 0.05 }', 'drive = 0.05'), "loading[1].drive"),
         (('name = "minimal"', 'name = 3'), "study.name"),

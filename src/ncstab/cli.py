@@ -73,7 +73,7 @@ def _event_summary(dataset) -> list[str]:
             continue
         found = np.isfinite(np.asarray(dataset[name].values))
         if found.any():
-            f1 = np.asarray(dataset[f"{event}_F"].sel(dof=1).values)[found]
+            f1 = np.asarray(dataset[f"{event}_F"].isel(dof=0).values)[found]
             lines.append(
                 f"  {event}: found in {int(found.sum())} of {found.size} cases"
                 f" (F1 from {np.nanmin(f1):.6g} to {np.nanmax(f1):.6g})"

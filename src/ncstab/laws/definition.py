@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 import sympy as sp
@@ -189,6 +190,9 @@ class LawDefinition:
         Whether the Macaulay bracket of seed Eq. (59) is applied to ``delta``.
     """
 
+    #: The family of interactions this law fits (see :class:`ncstab.systems.InteractionFamily`).
+    kind: ClassVar[str] = "contact"
+
     name: str
     title: str
     equations: str
@@ -254,3 +258,32 @@ class LawDefinition:
     @property
     def parameter_symbols(self) -> tuple[sp.Symbol, ...]:
         return tuple(p.symbol for p in self.parameters)
+
+    # --- the interaction-law protocol (k variables -> conjugate forces) ---------------
+    @property
+    def variables(self) -> tuple[sp.Symbol, ...]:
+        """The interaction variables q of a contact: ``(l, alpha)``."""
+        return (L, ALPHA)
+
+    @property
+    def force_symbols(self) -> tuple[sp.Symbol, ...]:
+        """The stored contact forces: ``(N, T)``."""
+        return (N, T)
+
+    @property
+    def conjugate_expressions(self) -> tuple[sp.Expr, ...]:
+        """Work-conjugates Q of q in dW_int = Q . dq: ``(-N, l T)`` (seed Eq. 9, 16)."""
+        return (-N, L * T)
+
+    @property
+    def force_totals(self) -> tuple[sp.Expr | None, ...]:
+        """(N(l, alpha), T(l, alpha)); T is ``None`` for a law given in rate form."""
+        return (self.normal_total, self.tangential_total)
+
+    @property
+    def force_rates(self) -> tuple[tuple[sp.Expr, ...] | None, ...]:
+        """Per force without a total form, its rate row (dT = c_l dl + c_alpha dalpha)."""
+        if self.tangential_force is not None:
+            return (None, None)
+        assert self.tangential_rate is not None
+        return (None, tuple(sp.sympify(c) for c in self.tangential_rate))

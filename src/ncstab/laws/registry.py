@@ -16,8 +16,9 @@ from ncstab.laws.catalogue import (
     no_tension,
 )
 from ncstab.laws.definition import LawDefinition
+from ncstab.laws.spring import LINEAR_SPRING, SpringLaw
 
-__all__ = ["LAWS", "MODIFIERS", "Law", "law_definition", "make_law", "law_names"]
+__all__ = ["LAWS", "MODIFIERS", "SPRING_LAWS", "Law", "law_definition", "make_law", "law_names"]
 
 #: Every law ncstab knows, by name.  Add a law here, nowhere else.
 LAWS: dict[str, LawDefinition] = {
@@ -25,6 +26,11 @@ LAWS: dict[str, LawDefinition] = {
     "weakly_hypoelastic": WEAKLY_HYPOELASTIC,
     "mcnamara": MCNAMARA,
     "turco": TURCO,
+}
+
+#: Laws of rotational springs (bars, columns, pendulums), by name.
+SPRING_LAWS: dict[str, SpringLaw] = {
+    "linear_spring": LINEAR_SPRING,
 }
 
 #: Modifiers, written after a law name with ``+``: ``"mcnamara+no_tension"``.
@@ -36,7 +42,7 @@ def law_names(with_modifiers: bool = False) -> list[str]:
     names = list(LAWS)
     if with_modifiers:
         names += [f"{n}+{m}" for n in LAWS for m in MODIFIERS]
-    return names
+    return names + list(SPRING_LAWS)
 
 
 def _catalogue_text() -> str:
@@ -45,11 +51,13 @@ def _catalogue_text() -> str:
         + ", ".join(LAWS)
         + "; modifiers (append with '+'): "
         + ", ".join(MODIFIERS)
+        + "; spring laws: "
+        + ", ".join(SPRING_LAWS)
     )
 
 
-def law_definition(name: str) -> LawDefinition:
-    """Look a law up by name, with modifiers (``"turco+no_tension"``).
+def law_definition(name: str) -> LawDefinition | SpringLaw:
+    """Look a law up by name, with modifiers (``"turco+no_tension"``), or a spring law.
 
     Raises
     ------
@@ -59,9 +67,11 @@ def law_definition(name: str) -> LawDefinition:
     """
     if not isinstance(name, str) or not name.strip():
         raise ValueError(f"law name must be a non-empty string, got {name!r}; {_catalogue_text()}")
+    if name.strip() in SPRING_LAWS:
+        return SPRING_LAWS[name.strip()]
     base, *modifiers = [part.strip() for part in name.split("+")]
     if base not in LAWS:
-        close = difflib.get_close_matches(base, LAWS, n=1)
+        close = difflib.get_close_matches(base, list(LAWS) + list(SPRING_LAWS), n=1)
         hint = f" (did you mean {close[0]!r}?)" if close else ""
         raise ValueError(f"unknown law {base!r}{hint}; {_catalogue_text()}")
     definition = LAWS[base]
@@ -128,7 +138,7 @@ def make_law(name: str | LawDefinition, /, **parameters: object) -> Law:
         Unknown law, unknown or missing parameter, or a value outside its range;
         the message names the parameter and the allowed range.
     """
-    definition = name if isinstance(name, LawDefinition) else law_definition(name)
+    definition = name if isinstance(name, (LawDefinition, SpringLaw)) else law_definition(name)
     specs = {p.name: p for p in definition.parameters}
     unknown = sorted(set(parameters) - set(specs))
     if unknown:

@@ -1,7 +1,8 @@
 """Loading programmes and the batched path engine (layer ``paths/``)."""
 
 from ncstab.paths.api import CaseRange, ParameterGrid, case_batch, follow
-from ncstab.paths.engine import CaseResult, follow_cases
+from ncstab.paths.case_result import CaseResult
+from ncstab.paths.stepper import follow_cases
 from ncstab.paths.model import CaseBatch
 from ncstab.paths.options import PathOptions, SystemSpec
 from ncstab.paths.programme import (
@@ -12,7 +13,7 @@ from ncstab.paths.programme import (
     Stage,
     parse_programme,
 )
-from ncstab.paths.result import Path
+from ncstab.paths.result import PathResult
 
 __all__ = [
     "EVENTS",
@@ -22,7 +23,7 @@ __all__ = [
     "CycleStage",
     "LoadingProgramme",
     "ParameterGrid",
-    "Path",
+    "PathResult",
     "PathOptions",
     "ProgrammeError",
     "Stage",

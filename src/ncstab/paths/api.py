@@ -1,195 +1,250 @@
-"""``ncstab.follow``: one call from (system, laws, programme, parameters) to a Path."""
+"""``ncstab.follow``: one call from (system, laws, programme, parameters) to a PathResult.
+
+The model is a value: a shipped system by name or :class:`SystemSpec`, or any
+:class:`~ncstab.systems.SystemDefinition`; laws by name or as definitions
+(:class:`~ncstab.laws.LawDefinition`, :class:`~ncstab.laws.spring.SpringLaw`).
+Everything that reaches the engine -- and every worker of a chunked or dask
+run -- is a picklable value, never a name looked up in a mutated registry.
+"""
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from ncstab.laws.definition import ALPHA0_SPEC
 from ncstab.laws.registry import Law, law_definition, make_law
-from ncstab.paths.engine import follow_cases
+from ncstab.paths.grid import CaseRange, ParameterGrid
 from ncstab.paths.model import CaseBatch
+from ncstab.paths.model_batch import ModelBatch
 from ncstab.paths.options import PathOptions, SystemSpec
 from ncstab.paths.programme import LoadingProgramme, parse_programme
-from ncstab.paths.result import Path
-from ncstab.paths.variables import CASE_DIMENSION, RESERVED_NAMES
+from ncstab.paths.result import PathResult
 from ncstab.paths.rigid_model import RigidCaseBatch
+from ncstab.paths.stepper import follow_cases
+from ncstab.systems.definition import SystemDefinition
 from ncstab.systems.diamond import DiamondChain
-from ncstab.systems import SYSTEMS
 
-__all__ = ["CaseRange", "ParameterGrid", "case_batch", "follow"]
+__all__ = ["CaseRange", "Model", "ParameterGrid", "case_batch", "follow", "resolve_model"]
 
-#: Parameters every system understands besides its own and its law's.
+
+
+#: Parameters of granular systems besides their own and their laws' (secondary contacts).
 ENGINE_PARAMETERS = {"kappa": 1.0}
 
 
+def _resolve_law(law: Any) -> Any:
+    """A law definition from a name (with modifiers) or a definition."""
+    if isinstance(law, str):
+        return law_definition(law)
+    if isinstance(law, Law):
+        return law.definition
+    if hasattr(law, "kind") and hasattr(law, "force_totals"):
+        return law
+    raise ValueError(f"a law is a name or a law definition, got {law!r}")
+
+
 @dataclass(frozen=True)
-class ParameterGrid:
-    """Sweep dimensions (lists) and fixed values (scalars) of a study.
+class Model:
+    """A system and its laws, resolved: what :func:`follow` runs, case by case.
 
     Attributes
     ----------
-    sweep
-        Ordered ``name -> 1-D values`` of the swept parameters.
-    fixed
-        ``name -> value`` of the fixed ones.
+    definition
+        The system.
+    laws
+        The laws of the ``law`` dimension (definitions), in order.
+    spec
+        The shipped system's :class:`SystemSpec`, or ``None`` for a system
+        given as a definition.
+    secondary_contacts
+        ``"activate"``, ``"ignore"`` or ``"stop"``.
     """
 
-    sweep: dict[str, np.ndarray]
-    fixed: dict[str, float]
-
-    @classmethod
-    def from_mapping(cls, parameters: Mapping[str, Any]) -> "ParameterGrid":
-        sweep: dict[str, np.ndarray] = {}
-        fixed: dict[str, float] = {}
-        for name, value in parameters.items():
-            if name in RESERVED_NAMES:
-                raise ValueError(
-                    f"parameter name {name!r} is reserved (a dimension, variable or keyword of the "
-                    "Dataset); choose another name"
-                )
-            if isinstance(value, (list, tuple, np.ndarray)):
-                array = np.asarray(value, dtype=float).ravel()
-                if array.size == 0:
-                    raise ValueError(f"parameter {name!r}: an empty sweep has no cases")
-                if not np.all(np.isfinite(array)):
-                    raise ValueError(f"parameter {name!r}: every swept value must be finite")
-                sweep[name] = array
-            else:
-                if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)):
-                    raise ValueError(f"parameter {name!r}: expected a number or a list, got {value!r}")
-                if not np.isfinite(value):
-                    raise ValueError(f"parameter {name!r} = {value!r} is not finite")
-                fixed[name] = float(value)
-        return cls(sweep, fixed)
+    definition: SystemDefinition
+    laws: tuple[Any, ...]
+    spec: SystemSpec | None
+    secondary_contacts: str = "activate"
 
     @property
-    def shape(self) -> tuple[int, ...]:
-        return tuple(v.size for v in self.sweep.values())
+    def law_names(self) -> tuple[str, ...]:
+        return tuple(law.name for law in self.laws)
 
     @property
-    def size(self) -> int:
-        return int(np.prod(self.shape)) if self.sweep else 1
-
-    def case_values(self) -> dict[str, np.ndarray]:
-        """Every parameter as a flat array over the cases (C order over the sweep)."""
-        out: dict[str, np.ndarray] = {}
-        if self.sweep:
-            mesh = np.meshgrid(*self.sweep.values(), indexing="ij")
-            out.update({name: m.ravel() for name, m in zip(self.sweep, mesh)})
-        out.update({name: np.full(self.size, value) for name, value in self.fixed.items()})
-        return out
+    def normal(self) -> str:
+        return self.spec.normal if self.spec is not None else "deformable"
 
     @property
-    def names(self) -> list[str]:
-        return list(self.sweep) + list(self.fixed)
+    def is_reduced_diamond(self) -> bool:
+        """The seed's two-dof diamond: followed by its fused kernel (or the pure-shear limit)."""
+        return self.spec is not None and self.spec.is_reduced_diamond
+
+    @property
+    def granular(self) -> bool:
+        """Whether the system has secondary contacts (and the ``kappa`` parameter)."""
+        return bool(self.definition.gaps)
+
+    def family_laws(self, law: Any) -> tuple[Any, ...]:
+        """The law of every family when ``law`` is the case's law (its kind's families)."""
+        return tuple(law if law.kind == f.kind else f.law for f in self.definition.families)
+
+    def fixed_parameters(self) -> set[str]:
+        """Law parameters fixed by the system's geometry (each contact's alpha0 of a ring)."""
+        fixed: set[str] = set()
+        for family in self.definition.families:
+            fixed |= set(family.fixed_parameters)
+        return fixed - {p.name for p in self.definition.parameters}
+
+    def known_parameters(self) -> set[str]:
+        """Every parameter a study may set: the system's, kappa, the laws' own."""
+        known = {p.name for p in self.definition.parameters}
+        if self.granular:
+            known |= set(ENGINE_PARAMETERS)
+        for law in self.laws:
+            for family_law in self.family_laws(law):
+                known |= set(family_law.parameter_names)
+        if self.normal == "rigid":
+            known -= {"gamma", "kappa"}
+        return known - self.fixed_parameters()
 
 
-@dataclass(frozen=True)
-class CaseRange:
-    """The flat cases ``start:stop`` of a :class:`ParameterGrid`, as a one-dimensional grid.
+def resolve_model(
+    system: SystemSpec | str | SystemDefinition | Model,
+    laws: Sequence[Any] | Any | None = None,
+    secondary_contacts: str | None = None,
+) -> Model:
+    """The :class:`Model` of a system and laws given by name or as values.
 
-    A chunk of a large sweep (:mod:`ncstab.studies.chunked`) is followed and
-    turned into a Dataset on its own; its swept parameters become one ``case``
-    dimension (flat index into the whole grid, C order) so that the chunk's
-    Dataset can be cut into the whole archive's blocks (:mod:`ncstab.studies.streaming`).  It offers what
-    :class:`ncstab.paths.Path` uses of a grid: ``sweep``, ``fixed``, ``shape``,
-    ``size`` and ``case_values()``.
+    A system whose interactions have laws of their own (a column, Ziegler's
+    pendulum) needs no laws: its ``law`` dimension is then its own laws.
+
+    Raises
+    ------
+    ValueError
+        Unknown system or law, a law of a kind the system has no interaction
+        of, no law for a system that needs one, a law given twice.
     """
+    if isinstance(system, Model):
+        return system
+    spec = SystemSpec(system) if isinstance(system, str) else system
+    if isinstance(spec, SystemSpec):
+        definition = spec.definition
+        mode = spec.secondary_contacts if secondary_contacts is None else secondary_contacts
+    elif isinstance(spec, SystemDefinition):
+        definition, mode, spec = spec, secondary_contacts or "activate", None
+    else:
+        raise ValueError(f"a system is a name, a SystemSpec or a SystemDefinition, got {system!r}")
+    if laws is None or (isinstance(laws, (list, tuple)) and not laws):
+        own = tuple(dict.fromkeys(f.law for f in definition.families if f.law is not None))
+        if any(f.law is None for f in definition.families) or not own:
+            kinds = sorted({f.kind for f in definition.families if f.law is None})
+            raise ValueError(
+                f"system {definition.name!r} needs a law for its {', '.join(kinds)} interactions: "
+                "give at least one law"
+            )
+        resolved = own[:1]
+    else:
+        items = [laws] if isinstance(laws, (str, Law)) or hasattr(laws, "force_totals") else list(laws)
+        resolved = tuple(_resolve_law(law) for law in items)
+    names = [law.name for law in resolved]
+    if len(set(names)) != len(names):
+        raise ValueError(f"laws: each law once, got {names}")
+    kinds = {f.kind for f in definition.families}
+    for law in resolved:
+        if law.kind not in kinds:
+            raise ValueError(
+                f"law {law.name!r} is a {law.kind} law; system {definition.name!r} has "
+                f"{' and '.join(sorted(kinds))} interactions only"
+            )
+    needing = {f.kind for f in definition.families if f.law is None}
+    for kind in needing:
+        if not any(law.kind == kind for law in resolved):
+            raise ValueError(f"system {definition.name!r} needs a {kind} law; give one")
+    return Model(definition, resolved, spec if isinstance(spec, SystemSpec) else None, mode)
 
-    grid: ParameterGrid
-    start: int
-    stop: int
 
-    def __post_init__(self) -> None:
-        if not 0 <= self.start < self.stop <= self.grid.size:
-            raise ValueError(f"cases {self.start}:{self.stop} are not a run of the grid's {self.grid.size} cases")
-
-    @property
-    def sweep(self) -> dict[str, np.ndarray]:
-        return {CASE_DIMENSION: np.arange(self.start, self.stop, dtype=np.int64)}
-
-    @property
-    def fixed(self) -> dict[str, float]:
-        return self.grid.fixed
-
-    @property
-    def shape(self) -> tuple[int, ...]:
-        return (self.stop - self.start,)
-
-    @property
-    def size(self) -> int:
-        return self.stop - self.start
-
-    @property
-    def names(self) -> list[str]:
-        return self.grid.names
-
-    def case_values(self) -> dict[str, np.ndarray]:
-        """``grid.case_values()[name][start:stop]``, without building the whole grid."""
-        values: dict[str, np.ndarray] = {}
-        if self.grid.sweep:
-            positions = np.unravel_index(np.arange(self.start, self.stop), self.grid.shape)
-            values.update({name: sweep[k] for (name, sweep), k in zip(self.grid.sweep.items(), positions)})
-        values.update({name: np.full(self.size, value) for name, value in self.grid.fixed.items()})
-        return values
+def _values_of(specs: Sequence[Any], values: Mapping[str, np.ndarray], size: int) -> dict[str, np.ndarray]:
+    """Validated values of ``specs`` from ``values`` (defaults where not given)."""
+    out = {}
+    for spec in specs:
+        if spec.name in values:
+            out[spec.name] = spec.validate(values[spec.name])
+        elif spec.default is not None:
+            out[spec.name] = np.full(size, float(spec.default))
+        else:
+            raise ValueError(f"parameter {spec.name!r} ({spec.description}) is needed; allowed: {spec.allowed}")
+    return out
 
 
 def case_batch(
-    law_name: str,
-    spec: SystemSpec,
-    values: dict[str, np.ndarray],
+    law: Any,
+    system: SystemSpec | str | SystemDefinition | Model,
+    values: Mapping[str, np.ndarray],
     size: int,
-) -> CaseBatch | RigidCaseBatch:
+) -> CaseBatch | RigidCaseBatch | ModelBatch:
     """The batch of ``size`` cases of one law that the engine follows.
 
     ``values`` holds every parameter as a flat array over the cases (see
     :meth:`ParameterGrid.case_values`); missing law or system parameters take
-    their defaults.  Used by :func:`follow` and by chunked study runs
-    (:mod:`ncstab.studies.chunked`), which follow a slice of the cases.
+    their defaults.  The seed's reduced diamond is followed by its fused
+    kernel (:class:`~ncstab.paths.model.CaseBatch`) or, with a rigid normal,
+    in the pure-shear limit; every other system as a
+    :class:`~ncstab.paths.model_batch.ModelBatch`.  Used by :func:`follow` and
+    by chunked study runs, which follow a slice of the cases.
     """
-    definition = law_definition(law_name)
-    if spec.normal == "rigid":
+    model = resolve_model(system, [law] if not isinstance(system, Model) else None)
+    definition = _resolve_law(law)
+    activate = model.secondary_contacts == "activate"
+    if model.is_reduced_diamond and model.normal == "rigid":
         alpha0 = values.get("alpha0", np.full(size, np.pi / 4))
-        law = make_law(definition, gamma=np.zeros(size), alpha0=alpha0)
-        return RigidCaseBatch(DiamondChain(alpha0=alpha0), law, spec.secondary_contacts == "activate")
-    law_parameters = {
-        p.name: values.get(p.name, np.full(size, p.default) if p.default is not None else None)
-        for p in definition.parameters
-    }
-    law_parameters = {k: v for k, v in law_parameters.items() if v is not None}
-    law: Law = make_law(definition, **law_parameters)
-    system_class = SYSTEMS[spec.name]
-    system = system_class(
-        **{name: values.get(name, np.full(size, spec_.default)) for name, spec_ in
-           ((p.name, p) for p in system_class.parameter_specs)}  # type: ignore[attr-defined]
-    )
-    kappa = values.get("kappa", np.full(size, ENGINE_PARAMETERS["kappa"]))
+        rigid_law = make_law(definition, gamma=np.zeros(size), alpha0=alpha0)
+        return RigidCaseBatch(DiamondChain(alpha0=alpha0), rigid_law, activate)
+    kappa = np.asarray(values.get("kappa", np.full(size, ENGINE_PARAMETERS["kappa"])), dtype=float)
     if np.any(~np.isfinite(kappa) | (kappa < 0)):
         raise ValueError("parameter 'kappa' (secondary-contact stiffness ratio) must be finite and >= 0")
-    return CaseBatch(system, law, np.asarray(kappa, dtype=float), spec.secondary_contacts == "activate")
+    if model.is_reduced_diamond:
+        law_parameters = {
+            p.name: values.get(p.name, np.full(size, p.default) if p.default is not None else None)
+            for p in definition.parameters
+        }
+        law_value: Law = make_law(definition, **{k: v for k, v in law_parameters.items() if v is not None})
+        system_value = DiamondChain(alpha0=values.get("alpha0", np.full(size, ALPHA0_SPEC.default)))
+        return CaseBatch(system_value, law_value, kappa, activate)
+    laws = model.family_laws(definition)
+    fixed = model.fixed_parameters()
+    law_values = tuple(
+        _values_of([p for p in family_law.parameters if p.name not in fixed and p.name not in family.fixed_parameters], values, size)
+        for family, family_law in zip(model.definition.families, laws)
+    )
+    parameters = _values_of(model.definition.parameters, values, size)
+    return ModelBatch(model.definition, laws, law_values, parameters, kappa, activate, size)
 
 
 def follow(
-    system: SystemSpec | str,
-    laws: Sequence[str] | str,
-    programme: LoadingProgramme | Sequence[Mapping[str, Any]],
+    system: SystemSpec | str | SystemDefinition | Model,
+    laws: Sequence[Any] | Any | None = None,
+    programme: LoadingProgramme | Sequence[Mapping[str, Any]] = (),
     parameters: Mapping[str, Any] | None = None,
     options: PathOptions | None = None,
     *,
     progress: bool = False,
     study_text: str = "",
-) -> Path:
+    secondary_contacts: str | None = None,
+) -> PathResult:
     """Follow a loading programme for every law and every case of a sweep.
 
     Parameters
     ----------
     system
-        A :class:`SystemSpec` or a system name (``"diamond"``).
+        A system name (``"diamond"``), a :class:`SystemSpec` (a shipped
+        system with its settings: ``SystemSpec("ring", grains=6)``), or any
+        :class:`~ncstab.systems.SystemDefinition` built in Python.
     laws
-        Law names (with modifiers, ``"mcnamara+no_tension"``); a sweep dimension.
+        Laws by name (with modifiers, ``"mcnamara+no_tension"``) or as
+        definitions; a sweep dimension.  ``None`` for a system whose
+        interactions have laws of their own (``column``, ``ziegler``).
     programme
         A validated :class:`LoadingProgramme` or raw stage tables.
     parameters
@@ -202,10 +257,13 @@ def follow(
         Show a tqdm progress bar (cases ended / cases).
     study_text
         Study file text kept in the Dataset's provenance.
+    secondary_contacts
+        For a system given as a definition: ``"activate"`` (default),
+        ``"ignore"`` or ``"stop"`` (a :class:`SystemSpec` carries its own).
 
     Returns
     -------
-    Path
+    PathResult
         Per-case status, states, events; ``to_dataset()`` for the archive.
 
     Raises
@@ -215,34 +273,32 @@ def follow(
     ProgrammeError
         A malformed loading programme (names the stage and the field).
     """
-    spec = SystemSpec(system) if isinstance(system, str) else system
+    model = resolve_model(system, laws, secondary_contacts)
     options = options or PathOptions()
-    law_names = [laws] if isinstance(laws, str) else list(laws)
-    if not law_names:
-        raise ValueError("give at least one law")
-    if len(set(law_names)) != len(law_names):
-        raise ValueError(f"laws: each law once, got {law_names}")
-    definitions = [law_definition(name) for name in law_names]
-    system_class = SYSTEMS[spec.name]
+    definition = model.definition
     if not isinstance(programme, LoadingProgramme):
-        programme = parse_programme(programme, system_class.dof_names, system_class.force_names)  # type: ignore[attr-defined]
+        programme = parse_programme(programme, definition.dofs, definition.forces, definition.load_parameter)
     grid = ParameterGrid.from_mapping(parameters or {})
-    known = set(ENGINE_PARAMETERS) | {p.name for p in system_class.parameter_specs}  # type: ignore[attr-defined]
-    known |= set(itertools.chain.from_iterable(d.parameter_names for d in definitions))
-    if spec.normal == "rigid":
+    known = model.known_parameters()
+    if model.normal == "rigid":
         meaningless = sorted({"gamma", "kappa"} & set(grid.names))
         if meaningless:
             raise ValueError(
                 f"parameter(s) {', '.join(map(repr, meaningless))} have no meaning with normal = 'rigid' "
                 "(the pure-shear limit, seed Eq. 60-68: forces in units of 2R k_t, rigid secondary contacts)"
             )
-        known -= {"gamma", "kappa"}
     referenced = programme.parameter_references()
     missing = sorted(referenced - set(grid.names))
     if missing:
         raise ValueError(
             f"the loading programme refers to undefined parameter(s) {', '.join(map(repr, missing))}; "
             f"defined: {', '.join(grid.names) or 'none'}"
+        )
+    fixed = sorted(model.fixed_parameters() & set(grid.names))
+    if fixed:
+        raise ValueError(
+            f"parameter(s) {', '.join(map(repr, fixed))} are fixed by the geometry of system "
+            f"{definition.name!r} (each contact's own value): remove them"
         )
     unused = sorted(set(grid.names) - known - referenced)
     if unused:
@@ -255,28 +311,25 @@ def follow(
     if progress:
         from tqdm.auto import tqdm
 
-        bar = tqdm(total=grid.size * len(law_names), unit="case", desc="ncstab", leave=False)
+        bar = tqdm(total=grid.size * len(model.laws), unit="case", desc="ncstab", leave=False)
     results = []
     try:
-        for name in law_names:
-            batch = case_batch(name, spec, values, grid.size)
+        for law in model.laws:
+            batch = case_batch(law, model, values, grid.size)
             results.append(
                 follow_cases(
-                    batch, programme, values, options, spec.secondary_contacts,
+                    batch, programme, values, options, model.secondary_contacts,
                     progress=bar.update if bar is not None else None,
                 )
             )
     finally:
         if bar is not None:
             bar.close()
-    return Path(
-        laws=tuple(law_names),
+    return PathResult(
+        model=model,
         grid=grid,
-        system=spec,
         programme=programme,
         options=options,
         results=tuple(results),
-        dof_names=system_class.dof_names,  # type: ignore[attr-defined]
-        force_names=system_class.force_names,  # type: ignore[attr-defined]
         study_text=study_text,
     )

@@ -3,7 +3,7 @@
 ``PathOptions(backend="compiled")`` runs the smooth linear stages of the
 deformable diamond (the fused state kernel of :mod:`ncstab.operators.tangent`,
 seed Eq. 4 and 30-34) through this module instead of the numpy passes of
-:class:`ncstab.paths.engine._BatchStepper`.  It takes the same steps: the same
+:class:`ncstab.paths.stepper.BatchStepper`.  It takes the same steps: the same
 DOP853 tableau and error norm, the same step-size control, the same Newton
 projection onto equilibrium for laws with a total form, the same cofactor
 tangent of the constrained rate system, the same event indicators located by
@@ -108,7 +108,7 @@ _E5 = np.ascontiguousarray(dop.E5, dtype=float)
 _D = np.ascontiguousarray(dop.D, dtype=float)
 _POWER = dop.INTERPOLATOR_POWER
 #: Columns whose crossing always cuts the step: the normal contact of a
-#: no_tension law switches branch (engine._event_tables); secondary contacts
+#: no_tension law switches branch (crossings.event_tables); secondary contacts
 #: switch only with "activate", which this stepper does not run.
 BREAK_ALWAYS = tuple(gap == 4 for gap in INDICATOR_GAP)
 
@@ -385,7 +385,7 @@ def _build_runner(law: Callable[..., tuple], rate_form: bool, uses_alpha: bool) 
         aux[5] = det_m
 
     def rhs_py(y, fc0, fc1, g0, g1, orientation, p, cos0, sin0, dy, ev, aux):
-        # engine._rhs: dy/ds = (dv, dlambda, dinternal, dW)
+        # rhs.state_derivative: dy/ds = (dv, dlambda, dinternal, dW)
         t_in = y[3] if N_INT else 0.0
         evaluate(y[0], y[1], t_in, p, cos0, sin0, ev)
         tangent(ev, fc0, fc1, g0, g1, orientation, aux)
@@ -507,7 +507,7 @@ def _build_runner(law: Callable[..., tuple], rate_form: bool, uses_alpha: bool) 
 
     @njit
     def project(y, fc0, fc1, offset, slope, p, cos0, sin0, newton_tol, newton_max_iter, ev):
-        # engine._project + _newton_correction_2, one case; ev left at the final state
+        # projection.project + _correction_2, one case; ev left at the final state
         g0, g1 = slope[0], slope[1]
         for _ in range(newton_max_iter + 1):
             evaluate(y[0], y[1], y[3] if N_INT else 0.0, p, cos0, sin0, ev)
@@ -587,7 +587,7 @@ def _build_runner(law: Callable[..., tuple], rate_form: bool, uses_alpha: bool) 
     @njit
     def indicator_at(y, column, fc0, fc1, offset, slope, lam_end, target_sign, orientation, secondary, p,
                      cos0, sin0, newton_tol, newton_max_iter, ev, aux, values):
-        # engine._locate_crossings.evaluate: project (total form), evaluate, one column.
+        # crossings.locate_crossings.evaluate: project (total form), evaluate, one column.
         # Without a projection the target and the gaps are functions of y alone: the
         # same operations without the law (bit for bit).
         if rate_form and column == target_column:
@@ -657,8 +657,8 @@ def _build_runner(law: Callable[..., tuple], rate_form: bool, uses_alpha: bool) 
 
     @njit
     def store_record(recorded, i, position, arclength, stage_number, y, ev, aux):
-        # engine._BatchStepper.record, straight into the recorder's padded arrays
-        # (``recorded``: one array per field, in the order of engine.STORED_FIELDS)
+        # stepper.BatchStepper.record, straight into the recorder's padded arrays
+        # (``recorded``: one array per field, in the order of BatchStepper.record_fields())
         (r_s, r_stage, r_u, r_lam, r_internal, r_work, r_f, r_l, r_alpha, r_n, r_t, r_k, r_du,
          r_dlam) = recorded
         r_s[i, position] = arclength
@@ -685,7 +685,7 @@ def _build_runner(law: Callable[..., tuple], rate_form: bool, uses_alpha: bool) 
 
     @njit
     def store_event(row, arclength, sigma, lower, upper, y, ev):
-        # engine._store_first_events, one event of one case
+        # crossings.store_first_events, one event of one case
         row[0] = arclength + sigma
         row[1] = arclength + lower
         row[2] = arclength + upper
@@ -729,7 +729,7 @@ def _build_runner(law: Callable[..., tuple], rate_form: bool, uses_alpha: bool) 
             newton_max_iter, min_step, max_step, max_steps, event_tol):
         """Run cases ``cases`` through their current (linear) stage; see :class:`Outcome`.
 
-        Mirrors one case's passes of engine._BatchStepper: a DOP853 step (projected),
+        Mirrors one case's passes of stepper.BatchStepper: a DOP853 step (projected),
         the step-size control, the domain check, crossings located, the cut, the
         first events, the commit and the end of the stage.
         """
@@ -918,8 +918,8 @@ def _build_runner(law: Callable[..., tuple], rate_form: bool, uses_alpha: bool) 
               orientation, secondary_state, parameters, cos0, sin0, stage_number, recorded, record_count,
               step_size, probe, rtol, atol):
         """Cases ``cases`` start their (set up) stage: dy/ds, indicators, state stored
-        (engine._BatchStepper._start_stage); the first step where ``step_size`` is NaN
-        (engine._BatchStepper._estimate_first_steps)."""
+        (stage_entry._start_stage); the first step where ``step_size`` is NaN
+        (stage_entry._estimate_first_steps)."""
         state = np.empty(M)
         ev = np.empty(16)
         aux = np.empty(6)

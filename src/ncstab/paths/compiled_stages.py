@@ -1,7 +1,7 @@
 """Drive the compiled stage loop from the engine's stepper.
 
 :class:`CompiledStages` hands every running case of a
-:class:`ncstab.paths.engine._BatchStepper` to the compiled loop of
+:class:`ncstab.paths.stepper.BatchStepper` to the compiled loop of
 :mod:`ncstab.paths.compiled` for the rest of its current stage, then does
 with the outcome what the numpy passes do: stores the steps, ends or fails
 the case, or enters its next stage (stage entry stays with the stepper).
@@ -17,7 +17,7 @@ from ncstab.paths.compiled import EVENT_FIELDS, Outcome, StageLoop
 from ncstab.paths.programme import EVENTS
 
 if TYPE_CHECKING:
-    from ncstab.paths.engine import _BatchStepper
+    from ncstab.paths.stepper import BatchStepper
     from ncstab.paths.model import CaseBatch
 
 __all__ = ["STEPS_PER_CALL", "CompiledStages"]
@@ -51,11 +51,9 @@ class CompiledStages:
         self.code = np.zeros(size, dtype=np.int64)
         self.detail = np.zeros(size, dtype=np.int64)
 
-    def start(self, stepper: _BatchStepper, cases: np.ndarray) -> None:
+    def start(self, stepper: BatchStepper, cases: np.ndarray) -> None:
         """Cases ``cases`` start their (set up) stage: dy/ds, indicators and the state stored;
         the first step length where it is still to be estimated."""
-        from ncstab.paths.engine import STORED_FIELDS
-
         recorder = stepper.recorder
         recorder.create(stepper.record_fields())
         recorder.reserve(int(recorder.count[cases].max()) + 1 if cases.size else 0)
@@ -65,14 +63,15 @@ class CompiledStages:
             stages.force_controlled, stages.slope, stages.lam_end, stages.target_sign, stages.orientation,
             stages.secondary_state.astype(np.int64), self.parameters, self.cos0, self.sin0,
             stepper.stage_index[cases[0]] if cases.size else 0,
-            tuple(recorder.arrays[name] for name in STORED_FIELDS), recorder.count,
+            tuple(recorder.arrays[name] for name in stepper.record_fields()), recorder.count,
             stepper.step_size, stepper.probe_step, stepper.options.rtol, stepper.options.atol,
         )
 
-    def run(self, stepper: _BatchStepper) -> None:
+    def run(self, stepper: BatchStepper) -> None:
         """Run every running case of ``stepper`` to its end, stage by stage."""
-        from ncstab.paths.engine import RUNNING, STORED_FIELDS
+        from ncstab.paths.status import RUNNING
 
+        fields = tuple(stepper.record_fields())
         size = stepper.size
         columns = max(len(c) for c in stepper.event_column.values())
         event_columns = np.full((len(EVENTS), columns), -1, dtype=np.int64)
@@ -96,7 +95,7 @@ class CompiledStages:
                     stages.force_controlled, stages.offset, stages.slope, stages.lam_end,
                     stages.target_sign, stages.orientation, stages.secondary_state.astype(np.int64),
                     self.parameters, self.cos0, self.sin0, stepper.stop_table[k], event_columns,
-                    found, values, stage, int(k), tuple(recorder.arrays[name] for name in STORED_FIELDS),
+                    found, values, stage, int(k), tuple(recorder.arrays[name] for name in fields),
                     recorder.count, self.code, self.detail, stepper.options.rtol, stepper.options.atol,
                     stepper.options.newton_tol, stepper.options.newton_max_iter,
                     stepper.options.min_step, stepper.options.max_step, stepper.options.max_steps,
@@ -105,9 +104,9 @@ class CompiledStages:
                 self._end(stepper, cases)
         self._store_events(stepper, found, values, stage)
 
-    def _end(self, stepper: _BatchStepper, cases: np.ndarray) -> None:
+    def _end(self, stepper: BatchStepper, cases: np.ndarray) -> None:
         """Do what each case's outcome asks (the numpy stepper's texts and statuses)."""
-        from ncstab.paths.engine import DOMAIN_REASONS
+        from ncstab.paths.model import DOMAIN_REASONS
 
         code, detail = self.code[cases], self.detail[cases]
         stopped = code == Outcome.STOPPED
@@ -120,7 +119,7 @@ class CompiledStages:
 
     @staticmethod
     def _store_events(
-        stepper: _BatchStepper, found: np.ndarray, values: np.ndarray, stage: np.ndarray
+        stepper: BatchStepper, found: np.ndarray, values: np.ndarray, stage: np.ndarray
     ) -> None:
         """Copy the first events the loop located into the stepper's event tables."""
         for e, name in enumerate(EVENTS):

@@ -23,48 +23,129 @@ located state is as accurate as the path itself.
 
 from __future__ import annotations
 
-from typing import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
 from ncstab.operators.indicators import det_K, flutter_discriminant, hill_eigenvalue
-from ncstab.paths.model import Evaluation
 from ncstab.paths.programme import EVENTS
 from ncstab.paths.tangent_field import StageArrays, control_matrix
 
-__all__ = ["CYCLE_COLUMN", "INDICATOR_EVENTS", "INDICATOR_GAP", "STIFFNESS_COLUMNS", "TARGET_COLUMN", "TURNING_COLUMN", "indicator_values", "locate_sign_changes"]
+if TYPE_CHECKING:
+    from ncstab.paths.model import Evaluation
 
-#: Event name of every indicator column (two columns for the two secondary gaps).
-INDICATOR_EVENTS = (
-    "limit_point",
-    "hill_loss",
-    "controllability_loss",
-    "flutter_onset",
-    "secondary_contact",
-    "secondary_contact",
-    "turning_point",
-    "normal_contact",
-    "cycle_end",
-    "stage_target",
-)
-#: Which contact-state bit a column switches when it crosses zero: 1 top-bottom
-#: and 2 left-right secondary contacts, 4 the normal contact of a no_tension law
-#: (its overlap delta), 0 none.
-INDICATOR_GAP = (0, 0, 0, 0, 1, 2, 0, 4, 0, 0)
+__all__ = [
+    "CYCLE_COLUMN",
+    "DIAMOND_COLUMNS",
+    "INDICATOR_EVENTS",
+    "INDICATOR_GAP",
+    "IndicatorLayout",
+    "STIFFNESS_COLUMNS",
+    "TARGET_COLUMN",
+    "TURNING_COLUMN",
+    "indicator_values",
+    "locate_sign_changes",
+]
+
+@dataclass(frozen=True)
+class IndicatorLayout:
+    """The indicator columns of a system: which event each column's sign change is.
+
+    Columns, in order: the four built on K (limit point, Hill, controllability,
+    flutter), one per unilateral gap (``secondary_contact``), the turning
+    point, one per normal contact of a no_tension law (``normal_contact``),
+    the end of a cycle turn and the stage target.
+
+    Attributes
+    ----------
+    gaps
+        Number of gaps of the system.
+    normal_contacts
+        Number of normal contacts that can open (no_tension laws).
+    """
+
+    gaps: int
+    normal_contacts: int
+
+    @property
+    def events(self) -> tuple[str, ...]:
+        """Event name of every column."""
+        return (
+            ("limit_point", "hill_loss", "controllability_loss", "flutter_onset")
+            + ("secondary_contact",) * self.gaps
+            + ("turning_point",)
+            + ("normal_contact",) * self.normal_contacts
+            + ("cycle_end", "stage_target")
+        )
+
+    @property
+    def switch_bits(self) -> tuple[int, ...]:
+        """Contact-state bit each column toggles when it crosses zero (0: none):
+        gap g is bit 2**g, normal contact j bit 2**(gaps + j)."""
+        gaps = tuple(1 << g for g in range(self.gaps))
+        normals = tuple(1 << (self.gaps + j) for j in range(self.normal_contacts))
+        return (0, 0, 0, 0) + gaps + (0,) + normals + (0, 0)
+
+    @property
+    def size(self) -> int:
+        return len(self.events)
+
+    @property
+    def target(self) -> int:
+        """Column of the stage target (lambda - lambda_end, signed toward the target)."""
+        return self.size - 1
+
+    @property
+    def cycle(self) -> int:
+        """Column of the end of a cycle turn (lambda - 2 pi (k + 1))."""
+        return self.size - 2
+
+    @property
+    def turning(self) -> int:
+        """Column of dlambda/ds (the only one needing the path tangent)."""
+        return STIFFNESS_COLUMNS + self.gaps
+
+    @property
+    def gap_columns(self) -> slice:
+        return slice(STIFFNESS_COLUMNS, STIFFNESS_COLUMNS + self.gaps)
+
+    @property
+    def normal_columns(self) -> slice:
+        return slice(self.turning + 1, self.turning + 1 + self.normal_contacts)
+
+
+#: The first columns, built on K (limit point, Hill, controllability, flutter).
+STIFFNESS_COLUMNS = 4
+#: The diamond's columns: two gaps (top-bottom, left-right), one normal contact.
+DIAMOND_COLUMNS = IndicatorLayout(gaps=2, normal_contacts=1)
+#: Event name of every indicator column of the diamond.
+INDICATOR_EVENTS = DIAMOND_COLUMNS.events
+#: Which contact-state bit a diamond column switches when it crosses zero: 1
+#: top-bottom and 2 left-right secondary contacts, 4 the normal contact of a
+#: no_tension law (its overlap delta), 0 none.
+INDICATOR_GAP = DIAMOND_COLUMNS.switch_bits
 #: Relative size below which an indicator built on K is taken as zero (no sign):
 #: a few hundred roundings of the entries of K.
 SIGN_NOISE = 1e-13
 #: Stand-in for an indicator exactly at zero, signed by the current branch.
 TINY = 1e-300
-#: Column of the end-of-cycle indicator (cycle stages: lambda - 2 pi (k + 1)).
-CYCLE_COLUMN = INDICATOR_EVENTS.index("cycle_end")
-#: The first columns, built on K (limit point, Hill, controllability, flutter).
-STIFFNESS_COLUMNS = 4
-#: Column of the turning-point indicator (dlambda/ds: the only one needing the path tangent).
-TURNING_COLUMN = INDICATOR_EVENTS.index("turning_point")
-#: Column of the stage-target indicator.
-TARGET_COLUMN = len(INDICATOR_EVENTS) - 1
+#: Column of the end-of-cycle indicator of the diamond.
+CYCLE_COLUMN = DIAMOND_COLUMNS.cycle
+#: Column of the diamond's turning-point indicator.
+TURNING_COLUMN = DIAMOND_COLUMNS.turning
+#: Column of the diamond's stage-target indicator.
+TARGET_COLUMN = DIAMOND_COLUMNS.target
 assert set(INDICATOR_EVENTS) - {"normal_contact", "cycle_end", "stage_target"} == set(EVENTS)
+
+
+def _signed_zero(values: np.ndarray, state: np.ndarray, bits: tuple[int, ...]) -> np.ndarray:
+    """A contact indicator exactly at zero takes the sign of the branch the case is on
+    (bit set: -TINY), so leaving the kink into the other side is a detected crossing."""
+    if values.shape[-1] == 0:
+        return values
+    closed = np.stack([state & bit for bit in bits], -1) > 0
+    return np.where(values == 0, np.where(closed, -TINY, TINY), values)
 
 
 def indicator_values(
@@ -73,8 +154,9 @@ def indicator_values(
     lam: np.ndarray,
     dlam: np.ndarray,
     stiffness_columns: bool = True,
+    layout: IndicatorLayout = DIAMOND_COLUMNS,
 ) -> np.ndarray:
-    """All indicators at a batch of states, ``(B, len(INDICATOR_EVENTS))``.
+    """All indicators at a batch of states, ``(B, layout.size)``.
 
     Parameters
     ----------
@@ -88,15 +170,16 @@ def indicator_values(
         ``False``: leave the four indicators built on K (limit point, Hill,
         controllability, flutter) NaN, for a caller that needs none of them
         (event location of a gap or a target); the other columns are the same.
+    layout
+        The system's columns.
     """
-    stiffness, gaps = evaluation.stiffness, evaluation.gaps
-    # A contact indicator exactly at zero takes the sign of the branch the case
-    # is on, so leaving the kink into the other side is a detected crossing
-    # (a no_tension contact touching at rest is closed: overlap "+0").
+    stiffness = evaluation.stiffness
     state = stage.secondary_state
-    overlap = evaluation.normal_overlap
-    overlap = np.where(overlap == 0, np.where(state & 4, -TINY, TINY), overlap)
-    gaps = np.where(gaps == 0, np.where(np.stack([state & 1, state & 2], -1) > 0, -TINY, TINY), gaps)
+    bits = layout.switch_bits
+    # (a no_tension contact touching at rest is closed: overlap "+0").
+    overlap = evaluation.normal_overlap.reshape(lam.shape[0], layout.normal_contacts)
+    overlap = _signed_zero(overlap, state, bits[layout.normal_columns])
+    gaps = _signed_zero(evaluation.gaps, state, bits[layout.gap_columns])
     target = (lam - stage.lam_end) * stage.target_sign
     with np.errstate(invalid="ignore"):
         cycle_end = np.where(stage.is_cycle, lam - 2 * np.pi * (stage.cycles_done + 1), np.nan)
@@ -121,8 +204,7 @@ def indicator_values(
     return np.column_stack(
         [
             *stiffness_values,
-            gaps[:, 0],
-            gaps[:, 1],
+            gaps,
             dlam,
             overlap,
             cycle_end,

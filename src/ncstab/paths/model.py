@@ -13,15 +13,18 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from ncstab.laws.catalogue import no_tension_branches
+from ncstab.paths.events import DIAMOND_COLUMNS, IndicatorLayout
 from ncstab.laws.registry import Law
 from ncstab.operators.tangent import compile_state_kernel, tangent_operator_at_contact_state
 from ncstab.symbolic.compile import CompiledLaw, compile_law
 from ncstab.systems.protocol import DiscreteSystem
 
-__all__ = ["CaseBatch", "Evaluation", "NORMAL_OPEN"]
+__all__ = ["CaseBatch", "DOMAIN_REASONS", "DiamondBatchTraits", "Evaluation", "NORMAL_OPEN"]
 
 #: Bit of the contact state: the normal contact of a no_tension law is open.
 NORMAL_OPEN = 4
+#: Why a state of the diamond is outside the admissible domain (checked in this order).
+DOMAIN_REASONS = ("non-finite numbers", "l* <= 0", "alpha outside (-pi/2, pi/2)")
 
 
 @dataclass(frozen=True)
@@ -56,6 +59,15 @@ class Evaluation:
     internal_gradient
         d(internal)/du, ``(B, n_internal, n)``, where the fused kernel gave it
         (rate-form laws), else ``None``.
+    dF_dload
+        dF/dP ``(B, n)`` (= -Q_ext, the load per unit of the load parameter P
+        with its sign in F = R(u, P)) for a system with a load parameter, else
+        ``None``.
+    interactions
+        Per interaction family (in the system's order), its variables
+        ``(B, m, k)`` and stored forces ``(B, m, k_f)``, where the batch gives
+        them (general models), else ``None`` (the diamond: ``q``, ``normal``,
+        ``tangential`` say it all).
     """
 
     q: np.ndarray
@@ -69,6 +81,8 @@ class Evaluation:
     gaps: np.ndarray
     normal_overlap: np.ndarray
     internal_gradient: np.ndarray | None = None
+    dF_dload: np.ndarray | None = None
+    interactions: tuple[tuple[np.ndarray, np.ndarray], ...] | None = None
 
     def take(self, index: np.ndarray) -> "Evaluation":
         return Evaluation(*(_take_or_none(getattr(self, f.name), index) for f in fields(self)))
@@ -76,12 +90,19 @@ class Evaluation:
     def put(self, index: np.ndarray, other: "Evaluation") -> None:
         for f in fields(self):
             mine = getattr(self, f.name)
-            if mine is not None:
+            if f.name == "interactions" and mine is not None:
+                for (variables, forces), (other_variables, other_forces) in zip(mine, other.interactions):
+                    variables[index], forces[index] = other_variables, other_forces
+            elif mine is not None:
                 mine[index] = getattr(other, f.name)
 
 
-def _take_or_none(value: np.ndarray | None, index: np.ndarray) -> np.ndarray | None:
-    return None if value is None else value[index]
+def _take_or_none(value, index: np.ndarray):
+    if value is None:
+        return None
+    if isinstance(value, tuple):  # interactions: (variables, forces) per family
+        return tuple((variables[index], forces[index]) for variables, forces in value)
+    return value[index]
 
 
 #: Rows of the packed array of a fused evaluation (see ``CaseBatch._evaluate_fused``).
@@ -95,8 +116,49 @@ def _take_parameters(parameters: dict[str, np.ndarray], index: np.ndarray) -> di
     return {k: (v[index] if np.ndim(v) else v) for k, v in parameters.items()}
 
 
+class DiamondBatchTraits:
+    """What the engine reads of a batch of the seed's reduced diamond (fused kernel or
+    pure-shear limit): its names, indicator columns, stored fields and domain."""
+
+    dof_names = ("D1", "D2")
+    force_names = ("F1", "F2")
+    #: Indicator columns: two gaps (top-bottom, left-right), one normal contact.
+    columns: IndicatorLayout = DIAMOND_COLUMNS
+    #: The recorded work is the work per contact, F . du / 2 (seed Eq. 5).
+    work_factor = 0.5
+    has_load = False
+    load_parameter: str | None = None
+    #: Contact-state bits of the secondary contacts.
+    gap_bits = 3
+    closed_gap_hint = (
+        " (secondary-contact springs already act at this state: with "
+        "secondary_contacts = 'activate' the grains overlap at rest unless "
+        "alpha0 is in [pi/6, pi/3])"
+    )
+    #: Stored interaction fields: one contact standing for the four.
+    interaction_shapes = {"l": (), "alpha": (), "N": (), "T": ()}
+    domain_reasons = DOMAIN_REASONS
+
+    @staticmethod
+    def record_interactions(evaluation: Evaluation) -> dict[str, np.ndarray]:
+        """l, alpha, N, T of the contact, ``(B,)`` each."""
+        return {
+            "l": evaluation.q[:, 0, 0],
+            "alpha": evaluation.q[:, 0, 1],
+            "N": evaluation.normal[:, 0],
+            "T": evaluation.tangential[:, 0],
+        }
+
+    @staticmethod
+    def domain_codes(evaluation: Evaluation) -> np.ndarray:
+        """Per state, -1 inside the domain (l* > 0, |alpha| < pi/2), else the index of
+        the reason in :data:`DOMAIN_REASONS`."""
+        length, angle = evaluation.q[:, 0, 0], evaluation.q[:, 0, 1]
+        return np.where(~(length > 0), 1, np.where(~(np.abs(angle) < np.pi / 2), 2, -1))
+
+
 @dataclass(frozen=True)
-class CaseBatch:
+class CaseBatch(DiamondBatchTraits):
     """B cases of one law on one system.
 
     Attributes
@@ -290,6 +352,7 @@ class CaseBatch:
         internal: np.ndarray,
         secondary_state: np.ndarray | None = None,
         geometry_only: bool = False,
+        load: np.ndarray | None = None,
     ) -> Evaluation:
         """Forces (seed Eq. 4) and tangent operator (Eq. 30-34) at a batch of states.
 

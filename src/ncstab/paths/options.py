@@ -87,12 +87,13 @@ class PathOptions:
 
 @dataclass(frozen=True)
 class SystemSpec:
-    """Which system to follow and how its contacts behave.
+    """Which shipped system to follow, with its settings, and how its contacts behave.
 
     Attributes
     ----------
     name
-        System name in :data:`ncstab.systems.SYSTEMS` (``"diamond"``).
+        System name in :data:`ncstab.systems.SYSTEMS`: ``"diamond"``,
+        ``"ring"``, ``"column"``, ``"ziegler"``.
     secondary_contacts
         ``"activate"`` (default): a frictionless unilateral normal spring of
         stiffness ratio ``kappa`` acts between non-neighbour grains once they
@@ -100,12 +101,21 @@ class SystemSpec:
         ends there.
     normal
         ``"deformable"`` (default) or ``"rigid"``: the pure-shear limit of the
-        seed (k_n -> infinity, Eq. 60-68).
+        seed (k_n -> infinity, Eq. 60-68; the reduced diamond only).
+    reduction, grains, links, load
+        The system's structural settings (``None``: the default, where it has
+        one): the diamond's ``reduction`` (``"symmetric"``, the seed's two
+        dofs, or ``"axes"``, four), a ring's ``grains``, a column's ``links``,
+        Ziegler's ``load`` (``"follower"`` or ``"dead"``).
     """
 
     name: str = "diamond"
     secondary_contacts: str = "activate"
     normal: str = "deformable"
+    reduction: str | None = None
+    grains: int | None = None
+    links: int | None = None
+    load: str | None = None
 
     def __post_init__(self) -> None:
         from ncstab.systems import SYSTEMS
@@ -119,3 +129,34 @@ class SystemSpec:
             )
         if self.normal not in NORMAL_MODES:
             raise ValueError(f"normal = {self.normal!r} is not allowed; allowed: {', '.join(NORMAL_MODES)}")
+        SYSTEMS[self.name].check_settings(self.given_settings)
+        if self.normal == "rigid" and not self.is_reduced_diamond:
+            raise ValueError(
+                "normal = 'rigid' (the pure-shear limit, seed Eq. 60-68) is defined for the reduced "
+                "diamond only (name = 'diamond', reduction = 'symmetric')"
+            )
+
+    @property
+    def given_settings(self) -> dict[str, object]:
+        """The structural settings given (not ``None``)."""
+        values = {"reduction": self.reduction, "grains": self.grains, "links": self.links, "load": self.load}
+        return {k: v for k, v in values.items() if v is not None}
+
+    @property
+    def settings(self) -> dict[str, object]:
+        """Every structural setting of the system, defaults included."""
+        from ncstab.systems import SYSTEMS
+
+        return SYSTEMS[self.name].check_settings(self.given_settings)
+
+    @property
+    def is_reduced_diamond(self) -> bool:
+        """The seed's two-dof diamond (followed by a fused kernel)."""
+        return self.name == "diamond" and self.reduction in (None, "symmetric")
+
+    @property
+    def definition(self):
+        """The :class:`~ncstab.systems.SystemDefinition` (built once, cached)."""
+        from ncstab.systems import system_definition
+
+        return system_definition(self.name, tuple(sorted(self.settings.items())))

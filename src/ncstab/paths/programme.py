@@ -1,10 +1,15 @@
 """Loading programmes: lists of stages that prescribe, for every dof, u_i or F_i.
 
-A *linear* stage holds some prescribed quantities and drives exactly one to a
-target; a *cycle* stage drives both displacements around a circle in the
-(Delta_1*, Delta_2*) plane through the current state (ARCHITECTURE.md, "Study
-file").  Values are numbers, names of parameters, or ``"current"`` (held at the
-value the quantity has when the stage starts).
+A *linear* stage holds some prescribed quantities and drives one or several
+to their targets: one driven quantity is the stage's parameter lambda
+itself; several move together, proportionally, lambda running from 0 to 1.
+A *load-parameter stage* drives the system's load parameter (``P``) with
+every dof free -- its force held at the value it has when the stage starts,
+zero from rest -- unless the stage holds it.  A *cycle* stage drives two
+displacements around a circle through the current state, in the plane of
+the dofs it names (the first two for a two-dof system), the others free
+(ARCHITECTURE.md, "Study file").  Values are numbers, names of parameters,
+or ``"current"`` (held at the value the quantity has when the stage starts).
 """
 
 from __future__ import annotations
@@ -35,6 +40,9 @@ EVENTS = (
 
 #: Held value meaning "the value the quantity has when the stage starts".
 CURRENT = "current"
+
+#: Names that are load parameters of some system (for error messages on the others).
+LOAD_PARAMETER_NAMES = ("P",)
 
 Value = float | str
 
@@ -67,7 +75,8 @@ class Stage:
     hold
         Prescribed quantities kept constant, e.g. ``{"F2": "current"}``.
     drive
-        Exactly one prescribed quantity and its target, e.g. ``{"D1": 0.6}``.
+        The driven quantities and their targets, e.g. ``{"D1": 0.6}`` or
+        ``{"D_top": 0.4, "D_bottom": 0.4}`` (proportionally) or ``{"P": 3.0}``.
     stop_at
         Events that end the stage (and the case) when located.
     """
@@ -77,7 +86,13 @@ class Stage:
     stop_at: tuple[str, ...] = ()
 
     @property
+    def drives(self) -> tuple[tuple[str, Value], ...]:
+        """The driven quantities and their targets, in order."""
+        return tuple(self.drive.items())
+
+    @property
     def driven(self) -> tuple[str, Value]:
+        """The driven quantity of a stage that drives one."""
         ((name, target),) = self.drive.items()
         return name, target
 
@@ -87,24 +102,27 @@ class Stage:
 
 @dataclass(frozen=True)
 class CycleStage:
-    """Both displacements driven around a circle through the current state.
+    """Two displacements driven around a circle through the current state.
 
     Attributes
     ----------
     center
-        Centre of the circle in the (Delta_1*, Delta_2*) plane.
+        Centre of the circle in the plane of ``dofs``.
     turns
         Number of full turns (a positive integer).
     direction
-        +1 counterclockwise, -1 clockwise.
+        +1 counterclockwise, -1 clockwise (from the first dof toward the second).
     stop_at
         Events that end the stage when located.
+    dofs
+        The two dofs of the cycle's plane (``("D1", "D2")``); the others are free.
     """
 
     center: tuple[Value, ...] = (0.0, 0.0)
     turns: int = 1
     direction: int = 1
     stop_at: tuple[str, ...] = ()
+    dofs: tuple[str, str] = ("D1", "D2")
 
 
 @dataclass(frozen=True)
@@ -160,8 +178,10 @@ def _check_stop_at(stage: int, stop_at: Any) -> tuple[str, ...]:
     return tuple(stop_at)
 
 
-def _parse_linear(number: int, raw: Mapping[str, Any], dofs: Sequence[str], forces: Sequence[str]) -> Stage:
-    quantities = list(dofs) + list(forces)
+def _parse_linear(
+    number: int, raw: Mapping[str, Any], dofs: Sequence[str], forces: Sequence[str], load: str | None
+) -> Stage:
+    quantities = list(dofs) + list(forces) + ([load] if load else [])
     hold = raw.get("hold", {}) or {}
     drive = raw.get("drive", {}) or {}
     for label, table in (("hold", hold), ("drive", drive)):
@@ -169,28 +189,29 @@ def _parse_linear(number: int, raw: Mapping[str, Any], dofs: Sequence[str], forc
             raise ProgrammeError(number, label, f"expected a table of quantity = value, got {table!r}")
         for name in table:
             if name not in quantities:
-                raise ProgrammeError(
-                    number, f"{label}.{name}",
-                    f"unknown quantity {name!r}; quantities are: {', '.join(quantities)}",
-                )
+                if load is None and name in LOAD_PARAMETER_NAMES:
+                    message = (
+                        f"{name!r} is a load parameter, and this system has none; "
+                        f"quantities are: {', '.join(quantities)}"
+                    )
+                else:
+                    message = f"unknown quantity {name!r}; quantities are: {', '.join(quantities)}"
+                raise ProgrammeError(number, f"{label}.{name}", message)
     if len(drive) == 0:
-        raise ProgrammeError(number, "drive", "the stage drives nothing: give exactly one quantity and its target")
-    if len(drive) > 1:
-        raise ProgrammeError(
-            number, "drive", f"the stage drives {len(drive)} quantities ({', '.join(drive)}); drive exactly one"
-        )
+        raise ProgrammeError(number, "drive", "the stage drives nothing: give at least one quantity and its target")
     controlled = {**{k: "hold" for k in hold}, **{k: "drive" for k in drive}}
     both = set(hold) & set(drive)
     if both:
         name = sorted(both)[0]
         raise ProgrammeError(number, f"drive.{name}", f"{name} is both held and driven")
+    load_stage = load is not None and load in drive
     for dof, force in zip(dofs, forces):
         if dof in controlled and force in controlled:
             raise ProgrammeError(
                 number, f"{controlled[force]}.{force}",
                 f"dof {dof}/{force} is controlled twice: prescribe either {dof} or {force}",
             )
-        if dof not in controlled and force not in controlled:
+        if dof not in controlled and force not in controlled and not load_stage:
             raise ProgrammeError(
                 number, "hold", f"dof {dof}/{force} is not controlled: hold or drive {dof} or {force}"
             )
@@ -202,20 +223,41 @@ def _parse_linear(number: int, raw: Mapping[str, Any], dofs: Sequence[str], forc
 def _parse_cycle(number: int, raw: Mapping[str, Any], dofs: Sequence[str]) -> CycleStage:
     cycle = raw["cycle"]
     if not isinstance(cycle, Mapping):
-        raise ProgrammeError(number, "cycle", f"expected a table (center, turns, direction), got {cycle!r}")
+        raise ProgrammeError(number, "cycle", f"expected a table (center, turns, direction, dofs), got {cycle!r}")
     extra = set(raw) - {"cycle", "stop_at"}
     if extra:
         raise ProgrammeError(number, sorted(extra)[0], "a cycle stage takes only 'cycle' and 'stop_at'")
-    unknown = set(cycle) - {"center", "turns", "direction"}
+    unknown = set(cycle) - {"center", "turns", "direction", "dofs"}
     if unknown:
         raise ProgrammeError(
-            number, f"cycle.{sorted(unknown)[0]}", "unknown key; a cycle takes center, turns, direction"
+            number, f"cycle.{sorted(unknown)[0]}", "unknown key; a cycle takes center, turns, direction, dofs"
         )
-    if len(dofs) != 2:
-        raise ProgrammeError(number, "cycle", "cycle stages need a system with two displacements")
+    if len(dofs) < 2:
+        raise ProgrammeError(number, "cycle", "cycle stages need a system with at least two displacements")
+    plane = cycle.get("dofs")
+    if plane is None:
+        if len(dofs) != 2:
+            raise ProgrammeError(
+                number, "cycle.dofs",
+                f"this system has {len(dofs)} dofs: name the two of the cycle's plane, e.g. "
+                f"dofs = [\"{dofs[0]}\", \"{dofs[1]}\"]",
+            )
+        plane = list(dofs)
+    if (
+        isinstance(plane, str)
+        or not isinstance(plane, Sequence)
+        or len(plane) != 2
+        or not all(isinstance(d, str) for d in plane)
+    ):
+        raise ProgrammeError(number, "cycle.dofs", f"expected the names of two dofs, got {plane!r}")
+    for name in plane:
+        if name not in dofs:
+            raise ProgrammeError(number, "cycle.dofs", f"unknown dof {name!r}; dofs are: {', '.join(dofs)}")
+    if plane[0] == plane[1]:
+        raise ProgrammeError(number, "cycle.dofs", f"give two different dofs, got {plane[0]!r} twice")
     center = cycle.get("center", [0.0, 0.0])
     if not isinstance(center, Sequence) or isinstance(center, str) or len(center) != 2:
-        raise ProgrammeError(number, "cycle.center", f"expected two numbers [D1, D2], got {center!r}")
+        raise ProgrammeError(number, "cycle.center", f"expected two numbers [{plane[0]}, {plane[1]}], got {center!r}")
     center_values = tuple(_check_value(number, "cycle.center", c, False) for c in center)
     turns = cycle.get("turns", 1)
     if isinstance(turns, bool) or not isinstance(turns, int) or turns < 1:
@@ -223,13 +265,16 @@ def _parse_cycle(number: int, raw: Mapping[str, Any], dofs: Sequence[str]) -> Cy
     direction = cycle.get("direction", 1)
     if isinstance(direction, bool) or direction not in (1, -1):
         raise ProgrammeError(number, "cycle.direction", f"expected 1 (counterclockwise) or -1, got {direction!r}")
-    return CycleStage(center_values, turns, int(direction), _check_stop_at(number, raw.get("stop_at")))
+    return CycleStage(
+        center_values, turns, int(direction), _check_stop_at(number, raw.get("stop_at")), (plane[0], plane[1])
+    )
 
 
 def parse_programme(
     stages: Sequence[Mapping[str, Any] | Stage | CycleStage],
     dofs: Sequence[str] = ("D1", "D2"),
     forces: Sequence[str] = ("F1", "F2"),
+    load: str | None = None,
 ) -> LoadingProgramme:
     """Validate raw stage tables (as in a study file) into a programme.
 
@@ -240,6 +285,8 @@ def parse_programme(
         (or already-built stages, re-validated).
     dofs, forces
         The system's displacement and force names.
+    load
+        The system's load parameter (``"P"``), or ``None``.
 
     Raises
     ------
@@ -254,7 +301,10 @@ def parse_programme(
             raw = {"hold": dict(raw.hold), "drive": dict(raw.drive), "stop_at": list(raw.stop_at)}
         elif isinstance(raw, CycleStage):
             raw = {
-                "cycle": {"center": list(raw.center), "turns": raw.turns, "direction": raw.direction},
+                "cycle": {
+                    "center": list(raw.center), "turns": raw.turns, "direction": raw.direction,
+                    "dofs": list(raw.dofs),
+                },
                 "stop_at": list(raw.stop_at),
             }
         if not isinstance(raw, Mapping):
@@ -267,5 +317,5 @@ def parse_programme(
             raise ProgrammeError(
                 number, sorted(unknown)[0], "unknown key; a stage takes hold, drive, stop_at (or cycle)"
             )
-        parsed.append(_parse_linear(number, raw, dofs, forces))
+        parsed.append(_parse_linear(number, raw, dofs, forces, load))
     return LoadingProgramme(tuple(parsed))

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ncstab.laws.registry import Law
-from ncstab.paths.model import Evaluation
+from ncstab.paths.model import DiamondBatchTraits, Evaluation
 from ncstab.symbolic.rigid import RigidLimit, rigid_limit
 from ncstab.systems.diamond import DiamondChain
 
@@ -33,7 +33,7 @@ FREE, TOP_BOTTOM, LEFT_RIGHT = 0, 1, 2
 
 
 @dataclass(frozen=True)
-class RigidCaseBatch:
+class RigidCaseBatch(DiamondBatchTraits):
     """B cases of one law on the diamond with rigid normal contacts.
 
     Internal variables: That for a rate law (Cundall--Strack), then the
@@ -86,8 +86,18 @@ class RigidCaseBatch:
         alpha0 = np.broadcast_to(self._alpha0, (self.size,))
         return np.column_stack([alpha0, np.zeros(self.size)])
 
-    def evaluate(self, v: np.ndarray, internal: np.ndarray, blocked: np.ndarray | None = None) -> Evaluation:
-        """u(v), F(v), their Jacobians and the contact state (seed Eq. 3, 4, 61-65)."""
+    def evaluate(
+        self,
+        v: np.ndarray,
+        internal: np.ndarray,
+        blocked: np.ndarray | None = None,
+        geometry_only: bool = False,
+        load: np.ndarray | None = None,
+    ) -> Evaluation:
+        """u(v), F(v), their Jacobians and the contact state (seed Eq. 3, 4, 61-65).
+
+        ``geometry_only`` and ``load`` are ignored (everything is cheap here; no load).
+        """
         size = v.shape[0]
         blocked = np.zeros(size, dtype=int) if blocked is None else blocked
         free = blocked == FREE

@@ -15,6 +15,20 @@ cofactor vector
 smooth in the state and defined through turning points of lambda (where det M
 changes sign, lambda simply turns back): pseudo-arclength needs nothing else.
 The tangent is normalised in (u, F, lambda) and oriented once per stage.
+
+A system with a load parameter P (``F = R(u, P)``, R the internal forces
+minus the loads) has ``P = P_offset + P_slope lambda`` in every stage (held:
+slope 0; a load-parameter stage drives it), so the constraint reads
+``M du = (g' - Q dR/dP P_slope) dlambda``: the cofactor tangent and the
+Newton projection take this effective ``g'`` (:func:`effective_rate`).
+
+Where the cofactor vector passes through zero -- a simple bifurcation point,
+where M is singular and the effective g' lies in its range -- its sign flips
+while the path goes straight on.  Each state's tangent is therefore also
+oriented by continuity: against the motion at the start of the current step
+(``StageArrays.reference``), the orientation being flipped where their
+product is negative.  On a regular path (limit points included: there the
+cofactor vector is smooth and non-zero) this never flips anything.
 """
 
 from __future__ import annotations
@@ -25,14 +39,15 @@ import numpy as np
 
 from ncstab.operators.indicators import det_K
 
-__all__ = ["StageArrays", "adjugate", "control_matrix", "path_tangent"]
+__all__ = ["PathTangent", "StageArrays", "adjugate", "control_matrix", "effective_rate", "path_tangent"]
 
 
 def adjugate(matrix: np.ndarray) -> np.ndarray:
     """Adjugate (transposed cofactor matrix) of ``(..., n, n)`` matrices.
 
     ``matrix @ adjugate(matrix) = det(matrix) I`` holds even where the matrix
-    is singular.  Closed form for n = 1, 2; cofactors otherwise.
+    is singular.  Closed form for n = 1, 2; from the singular value
+    decomposition otherwise.
     """
     n = matrix.shape[-1]
     if n == 1:
@@ -44,12 +59,14 @@ def adjugate(matrix: np.ndarray) -> np.ndarray:
         out[..., 0, 1] = -matrix[..., 0, 1]
         out[..., 1, 0] = -matrix[..., 1, 0]
         return out
-    cofactors = np.empty_like(matrix)
+    # adj(M) = det(U) det(V) V diag(prod_{j != i} s_j) U^T for M = U S V^T: no
+    # division, so it is as accurate at a singular M as anywhere else.
+    u, s, vt = np.linalg.svd(matrix)
+    others = np.empty_like(s)
     for i in range(n):
-        for j in range(n):
-            minor = np.delete(np.delete(matrix, i, axis=-2), j, axis=-1)
-            cofactors[..., i, j] = (-1) ** (i + j) * np.linalg.det(minor)
-    return np.swapaxes(cofactors, -1, -2)
+        others[..., i] = np.prod(np.delete(s, i, axis=-1), axis=-1)
+    sign = np.linalg.det(u) * np.linalg.det(vt)
+    return sign[..., None, None] * (np.swapaxes(vt, -1, -2) * others[..., None, :]) @ np.swapaxes(u, -1, -2)
 
 
 @dataclass
@@ -64,21 +81,28 @@ class StageArrays:
         ``(B, n)``: for a linear stage, prescribed values = offset + slope lambda.
     is_cycle
         ``(B,)`` bool.
-    center, radius, theta0, turn_direction
-        Circle of a cycle stage: u = center + radius (cos, sin)(theta0 + dir lambda).
+    center, radius, theta0, turn_direction, cycle_axes
+        Circle of a cycle stage in the plane of the dofs ``cycle_axes``
+        ``(B, 2)``: u[axes] = center + radius (cos, sin)(theta0 + dir lambda);
+        the other dofs follow offset + slope lambda (their forces held).
+    load_offset, load_slope
+        ``(B,)``: the load parameter is load_offset + load_slope lambda.
     lam_end
         ``(B,)`` target of lambda.
     target_sign
         ``(B,)`` +1 if lambda increases toward its target, -1 otherwise.
     orientation
         ``(B,)`` sign applied to the cofactor tangent, fixed at stage entry.
+    reference
+        ``(B, 2n + 1)`` the motion (du, dF, dlambda) at the start of the
+        current step (NaN at a stage's start): each tangent is oriented to
+        continue it (see the module docstring).
     secondary_state
-        ``(B,)`` int: which secondary contacts are closed, frozen within a step
-        and switched only where a gap crossing is located (so every step
-        integrates a smooth field).  Deformable system: bit 0 top-bottom, bit 1
-        left-right springs active.  Pure-shear limit: 0 free, 1 blocked by the
-        top-bottom contact, 2 by the left-right one.  Carries over from stage
-        to stage.
+        ``(B,)`` int: the contact-state bits (which gaps are closed, which
+        normal contacts of no_tension laws are open), frozen within a step and
+        switched only where a gap crossing is located (so every step
+        integrates a smooth field).  Carries over from stage to stage.  Pure-shear
+        limit: 0 free, 1 blocked by the top-bottom contact, 2 by the left-right one.
     cycles_done
         ``(B,)`` int: turns completed in the current cycle stage.
     """
@@ -91,9 +115,13 @@ class StageArrays:
     radius: np.ndarray
     theta0: np.ndarray
     turn_direction: np.ndarray
+    cycle_axes: np.ndarray
+    load_offset: np.ndarray
+    load_slope: np.ndarray
     lam_end: np.ndarray
     target_sign: np.ndarray
     orientation: np.ndarray
+    reference: np.ndarray
     secondary_state: np.ndarray
     cycles_done: np.ndarray
 
@@ -104,13 +132,17 @@ class StageArrays:
             offset=np.zeros((size, n)),
             slope=np.zeros((size, n)),
             is_cycle=np.zeros(size, dtype=bool),
-            center=np.zeros((size, n)),
+            center=np.zeros((size, 2)),
             radius=np.zeros(size),
             theta0=np.zeros(size),
             turn_direction=np.ones(size),
+            cycle_axes=np.tile(np.array([0, min(1, n - 1)]), (size, 1)),
+            load_offset=np.zeros(size),
+            load_slope=np.zeros(size),
             lam_end=np.zeros(size),
             target_sign=np.ones(size),
             orientation=np.ones(size),
+            reference=np.full((size, 2 * n + 1), np.nan),
             secondary_state=np.zeros(size, dtype=int),
             cycles_done=np.zeros(size, dtype=int),
         )
@@ -122,17 +154,25 @@ class StageArrays:
         for f in fields(self):
             getattr(self, f.name)[index] = getattr(other, f.name)
 
+    def load(self, lam: np.ndarray) -> np.ndarray:
+        """The load parameter at lambda, ``(B,)``."""
+        return self.load_offset + self.load_slope * lam
+
     def control_path(self, lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """g(lambda) and g'(lambda), each ``(B, n)``."""
-        if not self.is_cycle.any():  # elementwise either way: the same bits per case
-            return self.offset + self.slope * lam[:, None], self.slope
-        angle = self.theta0 + self.turn_direction * lam
-        unit = np.stack([np.cos(angle), np.sin(angle)], axis=-1) if self.center.shape[-1] == 2 else None
         linear_g = self.offset + self.slope * lam[:, None]
-        if unit is None:
+        if not self.is_cycle.any():  # elementwise either way: the same bits per case
             return linear_g, self.slope
-        circle_g = self.center + self.radius[:, None] * unit
-        circle_dg = (self.radius * self.turn_direction)[:, None] * np.stack([-unit[:, 1], unit[:, 0]], -1)
+        angle = self.theta0 + self.turn_direction * lam
+        cos, sin = np.cos(angle), np.sin(angle)
+        rows = np.arange(lam.shape[0])
+        first, second = self.cycle_axes[:, 0], self.cycle_axes[:, 1]
+        circle_g, circle_dg = linear_g.copy(), self.slope.copy()
+        circle_g[rows, first] = self.center[:, 0] + self.radius * cos
+        circle_g[rows, second] = self.center[:, 1] + self.radius * sin
+        rate = self.radius * self.turn_direction
+        circle_dg[rows, first] = rate * -sin
+        circle_dg[rows, second] = rate * cos
         cyc = self.is_cycle[:, None]
         return np.where(cyc, circle_g, linear_g), np.where(cyc, circle_dg, self.slope)
 
@@ -151,40 +191,104 @@ def control_matrix(du_dv: np.ndarray, df_dv: np.ndarray, force_controlled: np.nd
     return np.where(force_controlled[..., :, None], df_dv, du_dv)
 
 
+def effective_rate(stage: StageArrays, dg: np.ndarray, dF_dload: np.ndarray | None) -> np.ndarray:
+    """g' - Q dF/dP P_slope: the rate of the constraint in lambda with the load moving.
+
+    ``dF_dload`` (``(B, n)``, dR/dP = -Q_ext) is ``None`` for a system without a
+    load parameter: then g' itself (the same array).
+    """
+    if dF_dload is None:
+        return dg
+    return dg - np.where(stage.force_controlled, dF_dload, 0.0) * stage.load_slope[:, None]
+
+
+@dataclass
+class PathTangent:
+    """The unit tangent of a path at a batch of states (see :func:`path_tangent`).
+
+    Attributes
+    ----------
+    dv, du, dF
+        ``(B, n)`` state coordinates, displacements and forces along the path.
+    dlam
+        ``(B,)`` the driven parameter's rate.
+    det_m
+        ``(B,)`` det M, the mixed-control determinant (unscaled).
+    """
+
+    dv: np.ndarray
+    du: np.ndarray
+    dF: np.ndarray
+    dlam: np.ndarray
+    det_m: np.ndarray
+
+    def motion(self) -> np.ndarray:
+        """``(B, 2n + 1)``: (du, dF, dlambda), the vector the orientation continues."""
+        return np.concatenate([self.du, self.dF, self.dlam[:, None]], axis=-1)
+
+
 def path_tangent(
-    du_dv: np.ndarray, df_dv: np.ndarray, stage: StageArrays, lam: np.ndarray, oriented: bool = True
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    du_dv: np.ndarray,
+    df_dv: np.ndarray,
+    stage: StageArrays,
+    lam: np.ndarray,
+    oriented: bool = True,
+    dF_dload: np.ndarray | None = None,
+) -> PathTangent:
     """Unit tangent of the path in state coordinates, and det M.
 
     Normalised so that |du|^2 + |dF|^2 + dlambda^2 = 1 with du = (du/dv) dv and
-    dF = (dF/dv) dv.
-
-    Returns
-    -------
-    (dv, du, dlam, det_m)
-        ``(B, n)``, ``(B, n)``, ``(B,)``, ``(B,)``; NaN where the null space is
-        not one-dimensional (adj(M) g' = 0 and det M = 0).
+    dF = (dF/dv) dv + dR/dP dP (the load's term where the system has one,
+    ``dF_dload`` = dR/dP ``(B, n)``).  ``oriented``: times the stage's orientation,
+    then flipped where it would reverse ``stage.reference`` (the motion at the
+    start of the step; NaN: no reference).  NaN where the null space is not
+    one-dimensional (adj(M) g' = 0 and det M = 0).
     """
     _, dg = stage.control_path(lam)
+    dg = effective_rate(stage, dg, dF_dload)
+    load_rate = None if dF_dload is None else dF_dload * stage.load_slope[:, None]
     if dg.shape[-1] == 2:
-        return _path_tangent_2(du_dv, df_dv, stage, dg, oriented)
-    matrix = control_matrix(du_dv, df_dv, stage.force_controlled)
-    det_m = det_K(matrix)
-    dv = (adjugate(matrix) @ dg[:, :, None])[:, :, 0]
-    dlam = det_m
-    du = (du_dv @ dv[:, :, None])[:, :, 0]
-    df = (df_dv @ dv[:, :, None])[:, :, 0]
-    norm = np.sqrt(np.sum(du**2, -1) + np.sum(df**2, -1) + dlam**2)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        scale = np.where(norm > 0, 1.0 / norm, np.nan)
+        tangent = _path_tangent_2(du_dv, df_dv, stage, dg, oriented, load_rate)
+    else:
+        matrix = control_matrix(du_dv, df_dv, stage.force_controlled)
+        det_m = det_K(matrix)
+        dv = (adjugate(matrix) @ dg[:, :, None])[:, :, 0]
+        dlam = det_m
+        du = (du_dv @ dv[:, :, None])[:, :, 0]
+        df = (df_dv @ dv[:, :, None])[:, :, 0]
+        if load_rate is not None:
+            df = df + load_rate * dlam[:, None]
+        norm = np.sqrt(np.sum(du**2, -1) + np.sum(df**2, -1) + dlam**2)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            scale = np.where(norm > 0, 1.0 / norm, np.nan)
+        if oriented:
+            scale = scale * stage.orientation
+        tangent = PathTangent(dv * scale[:, None], du * scale[:, None], df * scale[:, None], dlam * scale, det_m)
     if oriented:
-        scale = scale * stage.orientation
-    return dv * scale[:, None], du * scale[:, None], dlam * scale, det_m
+        _continue_reference(tangent, stage.reference)
+    return tangent
+
+
+def _continue_reference(tangent: PathTangent, reference: np.ndarray) -> None:
+    """Flip (in place) the tangents whose motion reverses ``reference`` (NaN rows: none)."""
+    with np.errstate(invalid="ignore"):
+        product = np.sum(tangent.motion() * reference, axis=-1)
+    flip = product < 0
+    if flip.any():
+        for name in ("dv", "du", "dF"):
+            value = getattr(tangent, name)
+            value[flip] = -value[flip]
+        tangent.dlam = np.where(flip, -tangent.dlam, tangent.dlam)
 
 
 def _path_tangent_2(
-    du_dv: np.ndarray, df_dv: np.ndarray, stage: StageArrays, dg: np.ndarray, oriented: bool
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    du_dv: np.ndarray,
+    df_dv: np.ndarray,
+    stage: StageArrays,
+    dg: np.ndarray,
+    oriented: bool,
+    load_rate: np.ndarray | None = None,
+) -> PathTangent:
     """:func:`path_tangent` for n = 2 in closed form: the adjugate, det M and the
     products with du/dv and dF/dv written out entry by entry (no (B, 2, 2)
     temporaries, no matmul)."""
@@ -202,9 +306,13 @@ def _path_tangent_2(
     du = np.empty(dg.shape)
     du[:, 0] = du_dv[:, 0, 0] * dv0 + du_dv[:, 0, 1] * dv1
     du[:, 1] = du_dv[:, 1, 0] * dv0 + du_dv[:, 1, 1] * dv1
-    df0 = df_dv[:, 0, 0] * dv0 + df_dv[:, 0, 1] * dv1
-    df1 = df_dv[:, 1, 0] * dv0 + df_dv[:, 1, 1] * dv1
+    df = np.empty(dg.shape)
+    df[:, 0] = df_dv[:, 0, 0] * dv0 + df_dv[:, 0, 1] * dv1
+    df[:, 1] = df_dv[:, 1, 0] * dv0 + df_dv[:, 1, 1] * dv1
+    if load_rate is not None:  # dF = K du + dR/dP dP, dP = P_slope dlambda
+        df += load_rate * det_m[:, None]
     du0, du1 = du[:, 0], du[:, 1]
+    df0, df1 = df[:, 0], df[:, 1]
     norm = np.sqrt((du0 * du0 + du1 * du1) + (df0 * df0 + df1 * df1) + det_m * det_m)
     with np.errstate(invalid="ignore", divide="ignore"):
         scale = np.where(norm > 0, 1.0 / norm, np.nan)
@@ -212,4 +320,5 @@ def _path_tangent_2(
         scale = scale * stage.orientation
     dv *= scale[:, None]
     du *= scale[:, None]
-    return dv, du, det_m * scale, det_m
+    df *= scale[:, None]
+    return PathTangent(dv, du, df, det_m * scale, det_m)

@@ -1,12 +1,12 @@
 """Names, units and descriptions of every variable in a path Dataset.
 
-One table, used by :meth:`ncstab.paths.Path.to_dataset` and by the docs page
+One table, used by :meth:`ncstab.paths.PathResult.to_dataset` and by the docs page
 on archive variables.  All quantities are dimensionless (seed Eq. 37).
 """
 
 from __future__ import annotations
 
-__all__ = ["CASE_DIMENSION", "VARIABLES", "EVENT_FIELDS", "RESERVED_NAMES"]
+__all__ = ["CASE_DIMENSION", "EVENT_FIELDS", "MEMBER_DIMENSIONS", "RESERVED_NAMES", "VARIABLES"]
 
 #: Dimension of the flat cases of one chunk of a sweep (ncstab.paths.api.CaseRange).
 CASE_DIMENSION = "case"
@@ -43,6 +43,9 @@ VARIABLES: dict[str, tuple[str, str, str]] = {
     "cone_width": ("rad", "width of the unstable cone", "total angle of displacement directions (over the full circle) where the second-order work is negative; 0 while Hill's condition holds"),
     "cone_lower": ("rad", "lower bound of the unstable cone", "exact root of du . K du = 0 bounding one of the two opposite unstable cones (the other is shifted by pi); NaN if no cone"),
     "cone_upper": ("rad", "upper bound of the unstable cone", "exact root of du . K du = 0 bounding one of the two opposite unstable cones; NaN if no cone"),
+    "load": ("1", "load parameter", "the system's load parameter (P) at each stored state, in the system's units"),
+    "theta": ("rad", "spring rotation theta", "relative rotation across each rotational spring"),
+    "moment": ("1", "spring moment", "moment of each rotational spring, in units of its stiffness (k or C)"),
     "accepted_steps": ("1", "accepted integrator steps", "accepted arclength steps of the case"),
     "rejected_steps": ("1", "rejected integrator steps", "steps rejected by error control or Newton projection"),
 }
@@ -60,16 +63,23 @@ EVENT_FIELDS: dict[str, tuple[str, str, str]] = {
     "N": ("1", "N* at {event}", "normal contact force at the first {event}"),
     "T": ("1", "T* at {event}", "tangential contact force at the first {event}"),
     "K": ("1", "K at {event}", "tangent operator at the first {event}"),
+    "theta": ("rad", "theta at {event}", "spring rotations at the first {event}"),
+    "moment": ("1", "moment at {event}", "spring moments at the first {event}"),
+    "load": ("1", "load parameter at {event}", "the load parameter (P) at the first {event}"),
 }
+
+#: Member dimensions of interaction families and the names a study may not use.
+MEMBER_DIMENSIONS = ("contact", "spring")
 
 
 #: Names a study parameter may not take: dimensions, coordinates and variables
 #: of the Dataset, and words of the study syntax.
 RESERVED_NAMES = frozenset(
-    {"law", "law_class", "step", "dof", "i", "j", "cycle", "cycle_stage", "cycle_direction", "theta",
-     "current", "pi", "e", CASE_DIMENSION, "map_D1", "map_D2"}
+    {"law", "law_class", "step", "dof", "force", "i", "j", "cycle", "cycle_stage", "cycle_direction", "theta",
+     "current", "pi", "e", CASE_DIMENSION, "map_D1", "map_D2", *MEMBER_DIMENSIONS}
     | set(VARIABLES)
     | {f"{event}_{suffix}" for event in (
-        "limit_point", "hill_loss", "controllability_loss", "flutter_onset", "secondary_contact", "turning_point",
+        "limit_point", "bifurcation", "hill_loss", "controllability_loss", "flutter_onset", "divergence",
+        "secondary_contact", "turning_point",
     ) for suffix in EVENT_FIELDS}
 )

@@ -120,7 +120,7 @@ def _values(
         return None
     array = dataset[name]
     if "dof" in tail and "dof" in array.dims and "dof" in array.coords:
-        array = array.sel(dof=[1, 2])
+        array = array.isel(dof=[0, 1])
     return np.asarray(array.transpose(*dims, *tail).values)
 
 
@@ -160,7 +160,7 @@ def path_cases(dataset: xr.Dataset) -> list[Case]:
     Parameters
     ----------
     dataset
-        A Dataset of :meth:`ncstab.paths.Path.to_dataset` (or read back from
+        A Dataset of :meth:`ncstab.paths.PathResult.to_dataset` (or read back from
         its NetCDF archive).
 
     Returns

@@ -170,7 +170,7 @@ def cycle_cases(dataset: xr.Dataset) -> tuple[list[CycleCase], CycleLayout]:
     Parameters
     ----------
     dataset
-        A Dataset of :meth:`ncstab.paths.Path.to_dataset` (or read back from
+        A Dataset of :meth:`ncstab.paths.PathResult.to_dataset` (or read back from
         its archive) whose programme has at least one cycle stage.
 
     Returns
@@ -199,7 +199,7 @@ def cycle_cases(dataset: xr.Dataset) -> tuple[list[CycleCase], CycleLayout]:
     def values(name: str, tail: tuple[str, ...] = ()) -> np.ndarray:
         array = dataset[name]
         if "dof" in tail:
-            array = array.sel(dof=[1, 2])
+            array = array.isel(dof=[0, 1])
         return np.asarray(array.transpose(*dims, *tail).values)
 
     n_steps = values("n_steps")

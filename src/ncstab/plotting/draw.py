@@ -75,7 +75,7 @@ def draw_figures(
     Parameters
     ----------
     dataset
-        A path Dataset (:meth:`ncstab.paths.Path.to_dataset`, or an archive
+        A path Dataset (:meth:`ncstab.paths.PathResult.to_dataset`, or an archive
         read back with ``ncstab.studies.open_study``).
     directory
         Where to write; created if missing.

@@ -389,7 +389,7 @@ def plot_load_rotation(dataset: xr.Dataset, figure: Figure | None = None) -> Fig
     Parameters
     ----------
     dataset
-        A path Dataset (:meth:`ncstab.paths.Path.to_dataset`).
+        A path Dataset (:meth:`ncstab.paths.PathResult.to_dataset`).
     figure
         A Figure to draw into (a new (6.4, 4.8) in Figure by default).
 
@@ -408,7 +408,7 @@ def plot_load_displacement(dataset: xr.Dataset, figure: Figure | None = None) ->
     Parameters
     ----------
     dataset
-        A path Dataset (:meth:`ncstab.paths.Path.to_dataset`).
+        A path Dataset (:meth:`ncstab.paths.PathResult.to_dataset`).
     figure
         A Figure to draw into (a new one by default).
 
@@ -432,7 +432,7 @@ def plot_load_displacement_rotation(dataset: xr.Dataset, figure: Figure | None =
     Parameters
     ----------
     dataset
-        A path Dataset (:meth:`ncstab.paths.Path.to_dataset`).
+        A path Dataset (:meth:`ncstab.paths.PathResult.to_dataset`).
     figure
         A Figure to draw into (a new one by default).
 
@@ -578,7 +578,7 @@ def plot_stability(dataset: xr.Dataset, figure: Figure | None = None) -> Figure:
     Parameters
     ----------
     dataset
-        A path Dataset (:meth:`ncstab.paths.Path.to_dataset`).
+        A path Dataset (:meth:`ncstab.paths.PathResult.to_dataset`).
     figure
         A Figure to draw into (a new one by default).
 

@@ -48,8 +48,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ncstab.paths.api import CaseRange, ParameterGrid, case_batch
-from ncstab.paths.engine import follow_cases
-from ncstab.paths.result import Path
+from ncstab.paths.stepper import follow_cases
+from ncstab.paths.result import PathResult
 from ncstab.studies.archive import atomic_destination, open_study
 from ncstab.studies.run import study_dataset
 from ncstab.studies.streaming import (
@@ -60,7 +60,6 @@ from ncstab.studies.streaming import (
     encode_chunk,
 )
 from ncstab.studies.study import Study
-from ncstab.systems import SYSTEMS
 
 if TYPE_CHECKING:  # pragma: no cover
     import xarray as xr
@@ -260,18 +259,15 @@ def run_chunk(study: Study, law: str, start: int, stop: int) -> "xr.Dataset":
     """
     grid = CaseRange(ParameterGrid.from_mapping(study.parameters), start, stop)
     values = grid.case_values()
-    batch = case_batch(law, study.system, values, grid.size)
-    result = follow_cases(batch, study.programme, values, study.options, study.system.secondary_contacts)
-    system_class = SYSTEMS[study.system.name]
-    path = Path(
-        laws=(law,),
-        grid=grid,  # type: ignore[arg-type]  # a ParameterGrid in all that Path uses
-        system=study.system,
+    model = study.model(law)
+    batch = case_batch(model.laws[0], model, values, grid.size)
+    result = follow_cases(batch, study.programme, values, study.options, model.secondary_contacts)
+    path = PathResult(
+        model=model,
+        grid=grid,
         programme=study.programme,
         options=study.options,
         results=(result,),
-        dof_names=system_class.dof_names,  # type: ignore[attr-defined]
-        force_names=system_class.force_names,  # type: ignore[attr-defined]
         study_text=study.text,
     )
     return study_dataset(study, path)

@@ -8,18 +8,18 @@ import numpy as np
 
 from ncstab.laws.registry import law_definition, make_law
 from ncstab.operators.state_map import STATE_MAP_FIELDS, state_map
-from ncstab.systems import SYSTEMS
+from ncstab.systems import DiamondChain
 
 if TYPE_CHECKING:  # pragma: no cover
     import xarray as xr
 
-    from ncstab.paths.result import Path
+    from ncstab.paths.result import PathResult
 
 __all__ = ["add_state_maps"]
 
 
 def add_state_maps(
-    dataset: "xr.Dataset", path: "Path", grid: tuple[tuple[float, float, int], tuple[float, float, int]]
+    dataset: "xr.Dataset", path: "PathResult", grid: tuple[tuple[float, float, int], tuple[float, float, int]]
 ) -> "xr.Dataset":
     """Add ``map_*`` fields (dims law, sweep..., map_D1, map_D2) to a path Dataset.
 
@@ -32,18 +32,19 @@ def add_state_maps(
     d2 = np.linspace(d2_min, d2_max, n2)
     values = path.grid.case_values()
     size = path.grid.size
-    system_class = SYSTEMS[path.system.name]
+    if not path.model.is_reduced_diamond:
+        raise ValueError("state maps over (D1, D2) are drawn for the seed's reduced diamond only")
     fields = {name: np.full((len(path.laws), size, n1, n2), np.nan) for name in STATE_MAP_FIELDS}
     for k, name in enumerate(path.laws):
         definition = law_definition(name)
-        if not definition.has_total_form or path.system.normal != "deformable":
+        if not definition.has_total_form or path.model.normal != "deformable":
             continue
         parameters = {
             p.name: values.get(p.name, np.full(size, p.default if p.default is not None else np.nan))
             for p in definition.parameters
         }
         law = make_law(definition, **parameters)
-        system = system_class(**{p.name: values.get(p.name, np.full(size, p.default)) for p in system_class.parameter_specs})
+        system = DiamondChain(alpha0=values.get("alpha0", np.full(size, np.pi / 4)))
         for field, array in state_map(system, law, d1, d2).items():
             fields[field][k] = array
     dims = list(dataset["status"].dims) + ["map_D1", "map_D2"]

@@ -13,7 +13,7 @@ from ncstab.studies.study import Study
 if TYPE_CHECKING:  # pragma: no cover
     import xarray as xr
 
-    from ncstab.paths.result import Path
+    from ncstab.paths.result import PathResult
 
 __all__ = ["default_output_path", "run_study", "study_dataset"]
 
@@ -24,7 +24,7 @@ RESULTS_DIRECTORY = FilePath("results")
 def run_study(study: Study, progress: bool = False) -> xr.Dataset:
     """Follow every case of a study and return its labelled Dataset.
 
-    The Dataset is :meth:`ncstab.paths.Path.to_dataset` (ARCHITECTURE.md,
+    The Dataset is :meth:`ncstab.paths.PathResult.to_dataset` (ARCHITECTURE.md,
     "Dataset of a path study") in its on-disk representation
     (:func:`ncstab.studies.archive.normalise_dataset`), so that writing it with
     :func:`~ncstab.studies.write_dataset` and reading it back with
@@ -57,7 +57,7 @@ def run_study(study: Study, progress: bool = False) -> xr.Dataset:
     return study_dataset(study, path)
 
 
-def study_dataset(study: Study, path: "Path") -> xr.Dataset:
+def study_dataset(study: Study, path: "PathResult") -> xr.Dataset:
     """The archive Dataset of a study from its followed paths (one place for every run mode).
 
     ``path.to_dataset`` with the study's ``[map]``, the study's attributes,

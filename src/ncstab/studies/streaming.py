@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ncstab.paths.result import parameter_attributes
+from ncstab.paths.dataset import parameter_attributes
 from ncstab.paths.variables import CASE_DIMENSION
 from ncstab.studies.archive import COMPRESSION, MIN_COMPRESSED_SIZE
 
@@ -469,7 +469,7 @@ class ArchiveStream:
         import netCDF4
 
         with netCDF4.Dataset(self.path, "a") as handle:
-            # As in a whole run's Dataset (ncstab.paths.Path.to_dataset): every law's class.
+            # As in a whole run's Dataset (ncstab.paths.PathResult.to_dataset): every law's class.
             handle.variables["law_class"][:] = np.array([self._classes[law] for law in self.laws], dtype=object)
             handle.setncattr("law_class", "; ".join(f"{law}: {self._classes[law]}" for law in self.laws))
 

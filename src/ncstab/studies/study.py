@@ -33,7 +33,7 @@ from ncstab.paths.programme import (
     parse_programme,
 )
 from ncstab.studies.expressions import ExpressionError, evaluate_expression, is_expression
-from ncstab.systems import SYSTEMS
+from ncstab.systems import SYSTEMS, SystemKind
 
 __all__ = [
     "DEFAULT_FIGURES",
@@ -67,8 +67,10 @@ DEFAULT_FIGURES = ("load_displacement", "load_rotation")
 
 _NAME = re.compile(r"[A-Za-z0-9_-]+")
 _SYSTEM_SETTINGS = ("name", "secondary_contacts", "normal")
+#: Structural settings of every shipped system (when the system itself is unknown).
+_ALL_SETTINGS = ("reduction", "grains", "links", "load")
 _STAGE_KEYS = ("hold", "drive", "stop_at", "cycle")
-_CYCLE_KEYS = ("center", "turns", "direction")
+_CYCLE_KEYS = ("center", "turns", "direction", "dofs")
 _OUTPUT_KEYS = ("figures", "file")
 _MAP_KEYS = ("directions", "grid")
 _GRID_KEYS = ("D1", "D2")
@@ -166,6 +168,13 @@ class Study:
     def sweep(self) -> dict[str, list[float]]:
         """The swept parameters (sweep dimensions after ``law``), in order."""
         return {k: v for k, v in self.parameters.items() if isinstance(v, list)}
+
+    def model(self, law: str | None = None):
+        """The :class:`~ncstab.paths.api.Model` of the study (of one of its laws)."""
+        from ncstab.paths.api import resolve_model
+
+        laws = list(self.laws) if law is None else [law]
+        return resolve_model(self.system, laws or None)
 
     @property
     def n_cases(self) -> int:
@@ -282,36 +291,73 @@ def _study_section(data: Mapping[str, Any], errors: _Errors) -> tuple[str, str]:
 
 def _system_section(
     data: Mapping[str, Any], errors: _Errors, law_parameters: set[str]
-) -> tuple[SystemSpec, type | None, dict[str, Any]]:
-    """SystemSpec, the system class (``None`` if unknown) and the raw parameters given there."""
+) -> tuple[SystemSpec, SystemKind | None, dict[str, Any]]:
+    """SystemSpec, the system's kind (``None`` if unknown or its settings are bad) and
+    the raw parameters given there (shorthands such as ``damping = [b1, b2]`` expanded)."""
     table = _table(data, "system", errors) or {}
-    settings: dict[str, str] = {}
+    settings: dict[str, Any] = {}
     name = table.get("name", "diamond")
-    system_class = None
+    kind = None
     if not isinstance(name, str):
         errors.add("system.name", f"expected a string, got {_toml_type(name)}; systems are: {', '.join(SYSTEMS)}")
     elif name not in SYSTEMS:
         errors.add("system.name", f"unknown system {name!r}{_hint(name, SYSTEMS)}; systems are: {', '.join(SYSTEMS)}")
     else:
-        system_class = SYSTEMS[name]
+        kind = SYSTEMS[name]
         settings["name"] = name
     for key, allowed in (("secondary_contacts", SECONDARY_CONTACT_MODES), ("normal", NORMAL_MODES)):
         if key not in table:
             continue
         value = table[key]
-        if not isinstance(value, str) or value not in allowed:
+        if kind is not None and not kind.granular:
+            errors.add(f"system.{key}", f"system {name!r} has no grains in contact: {key} does not apply to it")
+        elif not isinstance(value, str) or value not in allowed:
             shown = repr(value) if isinstance(value, str) else _toml_type(value)
             hint = _hint(value, allowed) if isinstance(value, str) else ""
             errors.add(f"system.{key}", f"{shown} is not allowed{hint}; allowed: {', '.join(allowed)}")
         else:
             settings[key] = value
-    spec = SystemSpec(**settings)
+    structural = kind.setting_names() if kind is not None else _ALL_SETTINGS
+    for key in structural:
+        if key in table:
+            settings[key] = table[key]
+    if kind is not None:
+        for setting in kind.settings:
+            value = settings.get(setting.name, setting.default)
+            problem = "missing" if value is None else setting.check(value)
+            if problem == "missing":
+                errors.add(f"system.{setting.name}", f"missing: system {name!r} needs {setting.name} ({setting.description})")
+                kind = None
+            elif problem is not None:
+                shown = repr(value) if isinstance(value, (str, int, float)) else _toml_type(value)
+                errors.add(f"system.{setting.name}", f"{setting.name} = {shown} is not allowed for system {name!r}: give {problem}")
+                kind = None
+    spec = SystemSpec()
+    if kind is not None:
+        try:
+            spec = SystemSpec(**settings)
+        except ValueError as error:  # normal = "rigid" where there is no pure-shear limit
+            errors.add("system.normal", str(error))
+            kind = None
 
-    system_parameters = _system_parameter_names(system_class)
+    system_parameters = _system_parameter_names(kind)
+    shorthands = dict(kind.shorthands) if kind is not None else {}
     parameters: dict[str, Any] = {}
-    allowed_keys = list(_SYSTEM_SETTINGS) + system_parameters
+    allowed_keys = list(_SYSTEM_SETTINGS) + list(structural) + list(shorthands) + system_parameters
     for key, value in table.items():
-        if key in _SYSTEM_SETTINGS:
+        if key in _SYSTEM_SETTINGS or key in structural:
+            continue
+        if key in shorthands:
+            targets = shorthands[key]
+            if not isinstance(value, list) or len(value) != len(targets):
+                errors.add(
+                    f"system.{key}",
+                    f"expected [{', '.join(targets)}] (a list of {len(targets)} numbers), got {value!r}; "
+                    f"to sweep them, give {', '.join(targets)} in [parameters]",
+                )
+                continue
+            for target, element in zip(targets, value):
+                parameters[target] = element
             continue
         if key in system_parameters:
             if isinstance(value, list):
@@ -328,24 +374,32 @@ def _system_section(
                 f"system.{key}",
                 f"unknown key {key!r}{_hint(key, allowed_keys)}; [system] takes: {', '.join(allowed_keys)}",
             )
-    return spec, system_class, parameters
+    return spec, kind, parameters
 
 
-def _system_parameter_names(system_class: type | None) -> list[str]:
-    classes = [system_class] if system_class is not None else list(SYSTEMS.values())
+def _system_parameter_names(kind: SystemKind | None) -> list[str]:
+    kinds = [kind] if kind is not None else list(SYSTEMS.values())
     names: list[str] = []
-    for cls in classes:
-        names += [p.name for p in cls.parameter_specs if p.name not in names]  # type: ignore[attr-defined]
-    return names + ["kappa"]
+    for k in kinds:
+        names += [p.name for p in k.parameter_specs if p.name not in names]
+    if kind is None or kind.granular:
+        names.append("kappa")
+    return names
 
 
-def _laws_section(data: Mapping[str, Any], errors: _Errors) -> tuple[list[str], list[LawDefinition], bool]:
-    """Valid law names, their definitions, and whether every name given was valid."""
+def _laws_section(
+    data: Mapping[str, Any], errors: _Errors, optional: bool = False
+) -> tuple[list[str], list[LawDefinition], bool]:
+    """Valid law names, their definitions, and whether every name given was valid.
+
+    ``optional``: the system's interactions have laws of their own (a column,
+    Ziegler's pendulum), so a study may leave ``[laws]`` out.
+    """
     table = _table(data, "laws", errors)
     if table is None:
-        if "laws" not in data:
+        if "laws" not in data and not optional:
             errors.add("laws.names", f"missing: give [laws] names = [...]; the catalogue has: {', '.join(LAWS)}")
-        return [], [], False
+        return [], [], optional and "laws" not in data
     _check_keys(table, ("names",), "laws", errors, "[laws]")
     names = table.get("names")
     if names is None:
@@ -385,19 +439,28 @@ def _laws_section(data: Mapping[str, Any], errors: _Errors) -> tuple[list[str], 
 
 
 def _parameter_specs(
-    definitions: Sequence[LawDefinition], all_laws_valid: bool, system_class: type | None
+    definitions: Sequence[LawDefinition], all_laws_valid: bool, kind: SystemKind | None, system: SystemSpec
 ) -> dict[str, ParameterSpec]:
-    """Specification of every law, system and engine parameter the study may set."""
+    """Specification of every law, system and engine parameter the study may set
+    (not the law parameters the system's geometry fixes: a ring's alpha0)."""
     laws = definitions if all_laws_valid else list(definitions) + list(LAWS.values())
+    fixed: set[str] = set()
+    if kind is not None:
+        definition = system.definition
+        laws = list(laws) + [f.law for f in definition.families if f.law is not None]
+        fixed = {name for f in definition.families for name in f.fixed_parameters}
+        fixed -= {p.name for p in definition.parameters}
     specs: dict[str, ParameterSpec] = {}
-    for definition in laws:
-        for spec in definition.parameters:
+    for definition_ in laws:
+        for spec in definition_.parameters:
+            if spec.name not in fixed:
+                specs.setdefault(spec.name, spec)
+    kinds = [kind] if kind is not None else list(SYSTEMS.values())
+    for k in kinds:
+        for spec in k.parameter_specs:
             specs.setdefault(spec.name, spec)
-    classes = [system_class] if system_class is not None else list(SYSTEMS.values())
-    for cls in classes:
-        for spec in cls.parameter_specs:  # type: ignore[attr-defined]
-            specs.setdefault(spec.name, spec)
-    specs["kappa"] = KAPPA_SPEC
+    if kind is None or kind.granular:
+        specs["kappa"] = KAPPA_SPEC
     return specs
 
 
@@ -545,7 +608,7 @@ def _stage(
 
 
 def _loading_section(
-    data: Mapping[str, Any], errors: _Errors, system_class: type | None
+    data: Mapping[str, Any], errors: _Errors, kind: SystemKind | None, system: SystemSpec
 ) -> tuple[LoadingProgramme | None, dict[str, list[str]]]:
     """The programme (``None`` on error) and ``parameter name -> fields referring to it``."""
     references: dict[str, list[str]] = {}
@@ -561,8 +624,11 @@ def _loading_section(
     if not isinstance(stages, list) or not stages:
         errors.add("loading", "give at least one [[loading]] stage")
         return None, references
-    dofs = tuple(getattr(system_class, "dof_names", ("D1", "D2")))
-    forces = tuple(getattr(system_class, "force_names", ("F1", "F2")))
+    if kind is not None:
+        definition = system.definition
+        dofs, forces, load = definition.dofs, definition.forces, definition.load_parameter
+    else:
+        dofs, forces, load = ("D1", "D2"), ("F1", "F2"), None
     clean: list[dict[str, Any]] = []
     before = len(errors)
     for number, raw in enumerate(stages, start=1):
@@ -574,7 +640,7 @@ def _loading_section(
         if not checkable:
             continue
         try:  # one stage at a time, so that every stage's errors are reported
-            parse_programme([stage], dofs, forces)
+            parse_programme([stage], dofs, forces, load)
         except ProgrammeError as error:
             field = prefix if error.field in ("", "loading") else f"{prefix}.{error.field}"
             errors.add(field, _programme_message(error))
@@ -583,7 +649,7 @@ def _loading_section(
     if len(errors) > before:
         return None, references
     try:
-        return parse_programme(clean, dofs, forces), references
+        return parse_programme(clean, dofs, forces, load), references
     except ProgrammeError as error:  # pragma: no cover - every stage passed alone
         errors.add("loading", _programme_message(error))
         return None, references
@@ -842,6 +908,33 @@ def _check_references(
             )
 
 
+def _check_law_kinds(errors: _Errors, definitions: Sequence[Any], system: SystemSpec) -> None:
+    """Every law fits an interaction of the system; a system that needs a law has one."""
+    families = system.definition.families
+    kinds = {f.kind for f in families}
+    for definition in definitions:
+        if definition.kind not in kinds:
+            errors.add(
+                "laws.names",
+                f"law {definition.name!r} is a {definition.kind} law; system {system.name!r} has "
+                f"{' and '.join(sorted(kinds))} interactions only",
+            )
+
+
+def _check_fixed_parameters(data: Mapping[str, Any], errors: _Errors, kind: SystemKind | None, system: SystemSpec) -> None:
+    """Law parameters the system's geometry fixes (a ring's alpha0) cannot be set."""
+    if kind is None:
+        return
+    definition = system.definition
+    fixed = {name for f in definition.families for name in f.fixed_parameters} - {p.name for p in definition.parameters}
+    table = data.get("parameters")
+    for key in sorted(fixed & set(table or {})) if isinstance(table, dict) else ():
+        errors.add(
+            f"parameters.{key}",
+            f"{key} is fixed by the geometry of system {system.name!r} (each contact has its own); remove it",
+        )
+
+
 def _error_order(error: tuple[str, str]) -> tuple[int, int]:
     """Sort key: the section's place in :data:`SECTIONS` (unknown ones last), then the stage."""
     head = re.split(r"[.\[]", error[0], maxsplit=1)[0]
@@ -876,13 +969,18 @@ def parse_study(text: str, path: str | None = None) -> Study:
     errors = _Errors()
     _unknown_sections(data, errors)
     name, description = _study_section(data, errors)
-    laws, definitions, all_laws_valid = _laws_section(data, errors)
+    named = (data.get("system") or {}).get("name", "diamond") if isinstance(data.get("system"), dict) else "diamond"
+    own_laws = isinstance(named, str) and named in SYSTEMS and SYSTEMS[named].own_laws
+    laws, definitions, all_laws_valid = _laws_section(data, errors, optional=own_laws)
     law_only = {p.name for d in (definitions if all_laws_valid else LAWS.values()) for p in d.parameters}
     law_only -= set(_system_parameter_names(None))
-    system, system_class, system_raw = _system_section(data, errors, law_only)
-    specs = _parameter_specs(definitions, all_laws_valid, system_class)
+    system, kind, system_raw = _system_section(data, errors, law_only)
+    if kind is not None:
+        _check_law_kinds(errors, definitions, system)
+    specs = _parameter_specs(definitions, all_laws_valid, kind, system)
+    _check_fixed_parameters(data, errors, kind, system)
     parameters, fields, free = _parameters(data, errors, system, system_raw, specs, definitions)
-    programme, references = _loading_section(data, errors, system_class)
+    programme, references = _loading_section(data, errors, kind, system)
     known = [k for k in specs if not (system.normal == "rigid" and k in RIGID_MEANINGLESS)]
     _check_references(errors, references, fields, free, known)
     options = _options_section(data, errors)

@@ -19,7 +19,8 @@ from dataclasses import dataclass
 import sympy as sp
 
 from ncstab.laws.definition import LawDefinition
-from ncstab.symbolic.derivation import ConditionCheck, derive_law
+from ncstab.symbolic.derivation import ConditionCheck
+from ncstab.symbolic.interaction import derive_interaction
 
 __all__ = ["HYPERELASTIC", "WEAKLY_HYPOELASTIC", "STRONGLY_HYPOELASTIC", "Classification", "classify"]
 
@@ -68,13 +69,14 @@ def classify(definition: LawDefinition) -> Classification:
     Parameters
     ----------
     definition
-        Any law definition, including ones not in the catalogue.
+        Any law of the interaction protocol (a contact law, a rotational
+        spring), including ones not in the catalogue.
 
     Returns
     -------
     Classification
     """
-    derivation = derive_law(definition)
+    derivation = derive_interaction(definition)
     if not derivation.rate_integrability.holds:
         kind, deciding = STRONGLY_HYPOELASTIC, derivation.rate_integrability
     elif derivation.hyperelasticity.holds:

@@ -25,6 +25,7 @@ from ncstab.laws.definition import ALPHA, ALPHA0, GAMMA, L, N, T, LawDefinition
 
 __all__ = [
     "ConditionCheck",
+    "frobenius_residuals",
     "LawDerivation",
     "derive_law",
     "kinematic_integrability",
@@ -182,24 +183,31 @@ def _rate_matrix(definition: LawDefinition) -> sp.Matrix:
     return sp.Matrix(rows)
 
 
-def _frobenius_residuals(rate: sp.Matrix) -> list[sp.Expr]:
-    """Residuals of the Frobenius condition of dy = A dl + B dalpha, y = (N, T).
+def frobenius_residuals(
+    rate: sp.Matrix, variables: tuple[sp.Symbol, ...], forces: tuple[sp.Symbol, ...]
+) -> list[sp.Expr]:
+    """Residuals of the Frobenius condition of the rate system df = C(q, f) dq.
 
-    Integrable iff D_alpha A_i = D_l B_i with total derivatives
-    D_l = d/dl + sum_j A_j d/dy_j and D_alpha = d/dalpha + sum_j B_j d/dy_j.
+    For k variables q and m forces f (C is m x k), the rate form is
+    integrable -- a total form f(q) exists -- iff for every force i and every
+    pair of variables a < b, D_b C_ia = D_a C_ib with the total derivatives
+    D_a = d/dq_a + sum_j C_ja d/df_j.  For a contact (q = (l, alpha),
+    f = (N, T)) this is one condition per force, D_alpha C_il = D_l C_ialpha
+    (the seed's Eq. 8 in rate form: l dalpha is not exact).  Returns the
+    residuals ordered by force, then by pair; none for k = 1 (a one-variable
+    rate law always integrates).
     """
-    residuals = []
-    a_column = [rate[i, 0] for i in range(2)]
-    b_column = [rate[i, 1] for i in range(2)]
-    for i in range(2):
-        d_alpha_a = sp.diff(a_column[i], ALPHA) + sum(
-            b_column[j] * sp.diff(a_column[i], _FORCES[j]) for j in range(2)
-        )
-        d_l_b = sp.diff(b_column[i], L) + sum(
-            a_column[j] * sp.diff(b_column[i], _FORCES[j]) for j in range(2)
-        )
-        residuals.append(d_alpha_a - d_l_b)
-    return residuals
+    k, m = len(variables), len(forces)
+
+    def total_derivative(expr: sp.Expr, a: int) -> sp.Expr:
+        return sp.diff(expr, variables[a]) + sum(rate[j, a] * sp.diff(expr, forces[j]) for j in range(m))
+
+    return [
+        total_derivative(rate[i, a], b) - total_derivative(rate[i, b], a)
+        for i in range(m)
+        for a in range(k)
+        for b in range(a + 1, k)
+    ]
 
 
 def _substitute_total_forms(expr: sp.Expr, normal: sp.Expr, tangential: sp.Expr | None) -> sp.Expr:
@@ -239,7 +247,7 @@ def derive_law(definition: LawDefinition) -> LawDerivation:
     )
     conjugate = conjugate.applyfunc(lambda e: _substitute_total_forms(e, normal, tangential))
 
-    frobenius = _frobenius_residuals(rate)
+    frobenius = frobenius_residuals(rate, _CONTACT, _FORCES)
     normal_rate, tangential_rate = (
         _check(
             "Frobenius integrability of the rate form",

@@ -1,0 +1,271 @@
+"""The Dataset of a study: every variable labelled, with units and descriptions.
+
+ARCHITECTURE.md, "Dataset of a study".  The dofs and forces are named by the
+system (the ``dof`` coordinate holds the dof names, ``force`` their forces);
+interaction variables of a family with several members carry its member
+dimension (``contact``, ``spring``); ``load`` and ``<event>_load`` appear
+where the system has a load parameter.  K is dR/du with R the internal
+generalized forces minus the loads (load stiffness included).
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+import ncstab
+from ncstab.operators.indicators import det_K, flutter_discriminant, hill_eigenvalue, skew_part, symmetric_part
+from ncstab.paths.model_batch import family_fields
+from ncstab.paths.programme import EVENTS
+from ncstab.paths.variables import CASE_DIMENSION, EVENT_FIELDS, VARIABLES
+
+if TYPE_CHECKING:  # pragma: no cover
+    import xarray
+
+    from ncstab.paths.result import PathResult
+
+__all__ = ["parameter_attributes", "path_dataset"]
+
+#: Event fields that every system has (the interaction variables and ``load`` are the system's).
+COMMON_EVENT_FIELDS = ("s", "s_lower", "s_upper", "stage", "u", "F", "K")
+
+
+def _system_descriptions(result: "PathResult") -> dict[str, tuple[str, str, str]]:
+    """Variables whose description is the system's (not the seed's diamond)."""
+    if result.model.is_reduced_diamond:
+        return {}
+    units = result.model.definition.units
+    names = ", ".join(f"{d} (force {f})" for d, f in zip(result.dof_names, result.force_names))
+    return {
+        "u": (units.displacement, "generalized displacements", f"{units.displacement_description}: {names}"),
+        "F": (units.force, "generalized forces", f"{units.force_description}: R(u, load) = internal forces minus loads"),
+        "work": (VARIABLES["work"][0], "work", units.work_description),
+        "K": ("1", "tangent operator K", "K = dR/du, R = internal generalized forces minus loads (load stiffness included)"),
+        "lam": ("1", "driven quantity lambda", "the driven quantity of the stage (several driven together: the "
+                "fraction of the stage done, 0 to 1; turned angle, rad, for a cycle stage)"),
+    }
+
+
+def _members(result: "PathResult") -> dict[str, tuple[str, tuple[str, ...]]]:
+    """Stored interaction field -> (its member dimension or "", the members)."""
+    out = {}
+    for family, names, dimension in family_fields(result.model.definition):
+        for name in names:
+            out[name] = (dimension if family.size > 1 else "", family.members)
+    return out
+
+
+def path_dataset(result: "PathResult", directions: int | None = None) -> "xarray.Dataset":
+    """The labelled Dataset of a :class:`~ncstab.paths.result.PathResult` (see its ``to_dataset``)."""
+    import xarray as xr
+
+    sweep_dims = ["law", *result.grid.sweep]
+    shape = result.shape
+    n = len(result.dof_names)
+    length = max(int(r.n_steps.max()) if r.n_steps.size else 0 for r in result.results)
+
+    def stacked(key: str) -> np.ndarray:
+        arrays = []
+        for r in result.results:
+            a = r.steps[key]
+            pad = length - a.shape[1]
+            if pad:
+                fill = -1 if a.dtype.kind == "i" else np.nan
+                a = np.concatenate([a, np.full((a.shape[0], pad) + a.shape[2:], fill, dtype=a.dtype)], 1)
+            arrays.append(a)
+        array = np.stack(arrays)
+        return array.reshape(shape + array.shape[2:])
+
+    K = stacked("K")
+    du = stacked("du")
+    dF = np.einsum("...ij,...j->...i", K, du)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        d2w = np.einsum("...i,...i->...", dF, du) / (np.linalg.norm(dF, axis=-1) * np.linalg.norm(du, axis=-1))
+    stage = stacked("stage")
+    mixed = result.mixed_control(K, stage)
+    members = _members(result)
+
+    step_dims = [*sweep_dims, "step"]
+    data = {
+        "u": (step_dims + ["dof"], stacked("u")),
+        "F": (step_dims + ["dof"], stacked("F")),
+        **{name: (step_dims + ([dim] if dim else []), stacked(name)) for name, (dim, _) in members.items()},
+        "s": (step_dims, stacked("s")),
+        "stage": (step_dims, stage.astype(np.int32)),
+        "lam": (step_dims, stacked("lam")),
+        "work": (step_dims, stacked("work")),
+        "K": (step_dims + ["i", "j"], K),
+        "K_sym": (step_dims + ["i", "j"], symmetric_part(K)),
+        "K_skew": (step_dims + ["i", "j"], skew_part(K)),
+        "det_K": (step_dims, det_K(K)),
+        "hill": (step_dims, hill_eigenvalue(K)),
+        "d2W": (step_dims, d2w),
+        "flutter": (step_dims, flutter_discriminant(K)),
+        "mixed_control": (step_dims, mixed),
+        "n_steps": (sweep_dims, np.stack([r.n_steps for r in result.results]).reshape(shape).astype(np.int32)),
+        "status": (sweep_dims, result.status.astype(str)),
+        "message": (sweep_dims, result.message.astype(str)),
+        "accepted_steps": (
+            sweep_dims,
+            np.stack([r.counters["accepted"] for r in result.results]).reshape(shape).astype(np.int32),
+        ),
+        "rejected_steps": (
+            sweep_dims,
+            np.stack([r.counters["rejected"] for r in result.results]).reshape(shape).astype(np.int32),
+        ),
+    }
+    has_load = result.model.definition.load is not None
+    if has_load:
+        data["load"] = (step_dims, stacked("load"))
+    if directions is not None:
+        from ncstab.operators.directional_work import directional_second_order_work, unstable_cone
+
+        if int(directions) < 4:
+            raise ValueError(f"directions must be at least 4, got {directions}")
+        if n != 2:
+            raise ValueError(f"second-order work maps over directions need a two-dof system, this one has {n} dofs")
+        theta = np.linspace(0.0, np.pi, int(directions), endpoint=False)
+        data["d2W_dir"] = (step_dims + ["theta"], directional_second_order_work(K, theta))
+        width, lower, upper = unstable_cone(K)
+        data["cone_width"] = (step_dims, width)
+        data["cone_lower"] = (step_dims, lower)
+        data["cone_upper"] = (step_dims, upper)
+    first = result.results[0]
+    n_cycles = first.cycles["work"].shape[1] if first.cycles else 0
+    if n_cycles:
+        def cycle_array(key: str) -> np.ndarray:
+            array = np.stack([r.cycles[key] for r in result.results])
+            return array.reshape(shape + array.shape[2:])
+
+        work = cycle_array("work")
+        drift = cycle_array("tangential_drift")
+        drift_dim = [members["T"][0]] if "T" in members and members["T"][0] else []
+        data["cycle_work"] = ([*sweep_dims, "cycle"], work)
+        data["cumulative_work"] = ([*sweep_dims, "cycle"], np.cumsum(work, axis=-1))
+        data["cycle_force_gap"] = ([*sweep_dims, "cycle", "dof"], cycle_array("force_gap"))
+        data["cycle_T_drift"] = ([*sweep_dims, "cycle", *drift_dim], drift)
+    overrides = _system_descriptions(result)
+    rigid = result.model.normal == "rigid"
+    for name, (dims, values) in list(data.items()):
+        units, long_name, description = overrides.get(name, VARIABLES[name])
+        if rigid and name in ("F", "N", "T"):
+            description = description.replace("2R k_n", "2R k_t") + " (pure-shear limit: forces in units of 2R k_t, seed Eq. 62)"
+            long_name = long_name.replace("*", "^")
+        attrs = {"long_name": long_name, "description": description}
+        if units:
+            attrs["units"] = units
+        data[name] = (dims, values, attrs)
+    event_fields = list(COMMON_EVENT_FIELDS) + list(members) + (["load"] if has_load else [])
+    for event in EVENTS:
+        for suffix in event_fields:
+            units, long_name, description = EVENT_FIELDS[suffix] if suffix in EVENT_FIELDS else (
+                VARIABLES[suffix][0], f"{suffix} at {{event}}", f"{VARIABLES[suffix][1]} at the first {{event}}"
+            )
+            values = np.stack([r.events[event][suffix] for r in result.results])
+            values = values.reshape(shape + values.shape[2:])
+            if suffix in members:
+                dims = sweep_dims + ([members[suffix][0]] if members[suffix][0] else [])
+            else:
+                dims = sweep_dims + {2: ["dof"], 3: ["i", "j"]}.get(values.ndim - len(shape) + 1, [])
+            if suffix == "stage":
+                values = values.astype(np.int32)
+            data[f"{event}_{suffix}"] = (
+                dims,
+                values,
+                {"units": units, "long_name": long_name.format(event=event), "description": description.format(event=event)},
+            )
+    return xr.Dataset(data, coords=_coordinates(result, length, directions, n_cycles), attrs=_attributes(result))
+
+
+def _coordinates(result: "PathResult", length: int, directions: int | None, n_cycles: int) -> dict:
+    classes = result.law_classes()
+    dofs = np.array(result.dof_names, dtype=str)
+    plane = "the (Delta_1*, Delta_2*) plane" if result.model.is_reduced_diamond else f"the ({dofs[0]}, {dofs[-1]}) plane"
+    coords = {
+        "law": ("law", np.array(result.laws, dtype=str), {"long_name": "interaction law"}),
+        "law_class": ("law", np.array([classes[law] for law in result.laws], dtype=str), {
+            "long_name": "computed class of the law",
+            "description": "hyperelastic, weakly hypoelastic or strongly hypoelastic (ncstab.symbolic.classify)",
+        }),
+        "step": ("step", np.arange(length, dtype=np.int32), {"long_name": "stored state index"}),
+        "dof": ("dof", dofs, {
+            "long_name": "degree of freedom",
+            "description": "the system's generalized displacements; their conjugate forces are the coordinate force",
+        }),
+        "force": ("dof", np.array(result.force_names, dtype=str), {
+            "long_name": "generalized force", "description": "the force conjugate to each dof",
+        }),
+        "i": ("i", dofs, {"long_name": "matrix row (dof)"}),
+        "j": ("j", dofs, {"long_name": "matrix column (dof)"}),
+    }
+    for family, _, dimension in family_fields(result.model.definition):
+        if family.size > 1:
+            coords[dimension] = (dimension, np.array(family.members, dtype=str), {
+                "long_name": f"member of the {family.name}", "description": f"the {family.size} {family.kind}s of family {family.name}",
+            })
+    for name, values in result.grid.sweep.items():
+        coords[name] = (name, values, parameter_attributes(name, result))
+    if directions is not None:
+        coords["theta"] = ("theta", np.linspace(0.0, np.pi, int(directions), endpoint=False), {
+            "units": "rad", "long_name": "loading direction theta",
+            "description": f"direction of du = (cos theta, sin theta) in {plane}; d2W is pi-periodic"})
+    if n_cycles:
+        cycles = result.results[0].cycles
+        coords["cycle"] = ("cycle", np.arange(1, n_cycles + 1, dtype=np.int32), {
+            "long_name": "cycle number", "description": "turns of the cycle stages, in programme order"})
+        units, long_name, description = VARIABLES["cycle_stage"]
+        coords["cycle_stage"] = ("cycle", cycles["stage"].astype(np.int32), {
+            "units": units, "long_name": long_name, "description": description})
+        stage_direction = [getattr(st, "direction", 0) for st in result.programme.stages]
+        coords["cycle_direction"] = (
+            "cycle",
+            np.array([stage_direction[k] for k in cycles["stage"]], dtype=np.int32),
+            {"units": "1", "long_name": "direction of each cycle",
+             "description": f"1 counterclockwise, -1 clockwise in {plane if result.model.is_reduced_diamond else 'the plane of its dofs (first to second)'}"},
+        )
+    return coords
+
+
+def _attributes(result: "PathResult") -> dict:
+    classes = result.law_classes()
+    definition = result.model.definition
+    settings = ", ".join(f"{k}={v}" for k, v in definition.settings)
+    attrs = {
+        "Conventions": "CF-1.10",
+        "title": "ncstab path study",
+        "ncstab_version": ncstab.__version__,
+        "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "study": result.study_text,
+        "system": definition.name,
+        "system_settings": settings,
+        "secondary_contacts": result.model.secondary_contacts,
+        "normal": result.model.normal,
+        "law_class": "; ".join(f"{law}: {classes[law]}" for law in result.laws),
+        "force_unit": result.force_unit,
+        "source": definition.reference or definition.title,
+    }
+    if definition.load is not None:
+        attrs["load_parameter"] = definition.load.parameter
+        attrs["load_kind"] = definition.load.kind
+    for name, value in result.grid.fixed.items():
+        attrs[f"parameter_{name}"] = value
+    return attrs
+
+
+def parameter_attributes(name: str, result: "PathResult | None" = None) -> dict[str, str]:
+    """Attributes of the coordinate of a swept parameter (units, long_name, description)."""
+    from ncstab.laws.definition import ALPHA0_SPEC, GAMMA_SPEC
+
+    known = {
+        "gamma": ("1", "stiffness ratio gamma", GAMMA_SPEC.description),
+        "alpha0": ("rad", "initial orientation alpha0", ALPHA0_SPEC.description),
+        "kappa": ("1", "secondary contact stiffness ratio kappa", "stiffness of the secondary-contact springs / k_n"),
+        CASE_DIMENSION: ("1", "case index", "flat index of the case in the whole sweep (C order over the swept parameters)"),
+    }
+    if result is not None:
+        for spec in result.model.definition.parameters:
+            known.setdefault(spec.name, (spec.units, spec.name, spec.description))
+    units, long_name, description = known.get(name, ("1", name, f"study parameter {name}"))
+    return {"units": units, "long_name": long_name, "description": description}

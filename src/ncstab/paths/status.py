@@ -1,0 +1,34 @@
+"""The status vocabulary of a case (a leaf module: every layer of the engine reads it).
+
+A case is ``running`` while the engine follows it, then ``finished`` (every
+stage done), ``stopped:<event>`` (a stop event of its stage) or
+``failed:<reason>`` with a message saying what happened.
+"""
+
+from __future__ import annotations
+
+__all__ = ["FAILURE_REASONS", "FINISHED", "RUNNING", "STOPPED_PREFIX", "FAILED_PREFIX", "failed", "stopped"]
+
+RUNNING = "running"
+FINISHED = "finished"
+STOPPED_PREFIX = "stopped:"
+FAILED_PREFIX = "failed:"
+
+#: Why a case can fail, in words.
+FAILURE_REASONS = {
+    "step_size_underflow": "the step size fell below min_step",
+    "left_domain": "the path left the admissible domain",
+    "max_steps": "max_steps accepted steps before the end of the programme",
+    "singular_control": "the control is singular at a stage start",
+    "bad_stage_start": "a held quantity is not at its held value when the stage starts",
+}
+
+
+def stopped(event: str) -> str:
+    """The status of a case stopped at ``event``."""
+    return f"{STOPPED_PREFIX}{event}"
+
+
+def failed(reason: str) -> str:
+    """The status of a case that failed for ``reason`` (a key of :data:`FAILURE_REASONS`)."""
+    return f"{FAILED_PREFIX}{reason}"

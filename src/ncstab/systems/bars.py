@@ -1,0 +1,150 @@
+"""Chains of rigid bars with rotational springs: Hencky's column and Ziegler's pendulum.
+
+Both have their own interactions (linear rotational springs of unit
+stiffness, :data:`ncstab.laws.spring.LINEAR_SPRING`) and a load parameter P.
+
+* :func:`column` -- Hencky's bar chain (ARCHITECTURE.md, "Systems"): n rigid
+  links of length a, bar i at the angle theta_i = asin(w_i - w_{i-1}) from the
+  axis (w_0 = w_n = 0), ends pinned, the top end free to move along the
+  axis; springs C at the n - 1 internal joints with moment
+  C (theta_{j+1} - theta_j); an axial dead load P doing the work
+  P a sum(1 - cos theta_i).  Dofs: the lateral displacements w_1..w_{n-1} of
+  the internal joints (units of a); P in units of C/a; forces (lateral, at
+  the joints) in units of C/a.  Straight-path buckling loads:
+  P_k = (4 C/a) sin^2(k pi / 2n) (Hencky).
+* :func:`ziegler` -- two rigid bars of length l (Ziegler 1952): absolute bar
+  angles phi1, phi2 from the vertical; springs k at the base (moment
+  k phi1) and at the middle joint (moment k (phi2 - phi1)); point masses
+  m1 at the middle joint and m2 at the tip; joint dashpots b1 phi1' and
+  b2 (phi2' - phi1'); a tip load P, either a follower (along the second
+  bar: not conservative) or dead (vertical).  Units: angles in rad, moments
+  in units of k, P in units of k/l, masses in units of m, time in units of
+  sqrt(m l^2 / k), damping b* = b / sqrt(k m l^2).  On the straight state
+  K_follower = [[2 - P, P - 1], [-1, 1]] (det K = 1: no divergence, flutter
+  at (7/2 - sqrt 2) k/l for m1 = 2 m2) and K_dead = [[2 - P, -1], [-1, 1 - P]]
+  (det K = P^2 - 3P + 1: divergence at (3 - sqrt 5)/2).
+"""
+
+from __future__ import annotations
+
+import sympy as sp
+
+from ncstab.laws.definition import ParameterSpec
+from ncstab.laws.spring import LINEAR_SPRING
+from ncstab.systems.definition import (
+    DomainCondition,
+    InteractionFamily,
+    LoadDefinition,
+    SystemDefinition,
+    SystemUnits,
+    dof_symbols,
+)
+
+__all__ = ["ZIEGLER_LOADS", "column", "ziegler"]
+
+#: The two loads of Ziegler's pendulum.
+ZIEGLER_LOADS = ("follower", "dead")
+
+
+def column(links: int) -> SystemDefinition:
+    """Hencky's column of ``links`` rigid links (n >= 2) under an axial dead load P."""
+    if isinstance(links, bool) or not isinstance(links, int) or links < 2:
+        raise ValueError(f"a column needs links >= 2 (a whole number), got {links!r}")
+    n = links
+    dofs = tuple(f"w{i}" for i in range(1, n))
+    w = (sp.Integer(0), *dof_symbols(dofs), sp.Integer(0))
+    rise = [w[i] - w[i - 1] for i in range(1, n + 1)]  # sin(theta_i) of each bar
+    theta = [sp.asin(x) for x in rise]
+    springs = InteractionFamily(
+        name="springs",
+        kind="spring",
+        members=tuple(f"joint{j}" for j in range(1, n)),
+        variables=tuple((theta[j] - theta[j - 1],) for j in range(1, n)),
+        law=LINEAR_SPRING,
+    )
+    shortening = sum(1 - sp.sqrt(1 - x**2) for x in rise)  # sum (1 - cos theta_i)
+    load = LoadDefinition(
+        parameter="P",
+        kind="dead",
+        vector=tuple(sp.diff(shortening, u) for u in w[1:-1]),
+        units="C/a",
+        description="axial dead load P (units C/a)",
+    )
+    return SystemDefinition(
+        name="column",
+        title=f"Hencky column of {n} rigid links with rotational springs, axial dead load",
+        dofs=dofs,
+        forces=tuple(f"F{i}" for i in range(1, n)),
+        families=(springs,),
+        load=load,
+        domain=tuple(DomainCondition(1 - x**2, f"bar {i + 1} at right angles to the axis") for i, x in enumerate(rise)),
+        units=SystemUnits(
+            displacement="1",
+            displacement_description="lateral displacement of each internal joint / a (link length)",
+            force="1",
+            force_description="lateral force at each internal joint / (C/a)",
+            work_description="work of the external forces and of P, in units of C",
+            force_unit="C/a",
+        ),
+        settings=(("links", n),),
+        reference="Hencky (1921), Eisenbau 11, 437-452; Challamel & Kocsis (2021), Int. J. Non-Linear Mech. 136, 103772",
+    )
+
+
+def _positive(name: str, description: str, default: float) -> ParameterSpec:
+    return ParameterSpec(name, sp.Symbol(name, positive=True), description, lower=0.0, lower_inclusive=False, default=default)
+
+
+def _nonnegative(name: str, description: str) -> ParameterSpec:
+    return ParameterSpec(name, sp.Symbol(name, nonnegative=True), description, lower=0.0, default=0.0)
+
+
+#: Ziegler's parameters: masses (units m) and joint dashpots (units sqrt(k m l^2)).
+ZIEGLER_PARAMETERS = (
+    _positive("m1", "point mass at the middle joint / m", 2.0),
+    _positive("m2", "point mass at the tip / m", 1.0),
+    _nonnegative("b1", "dashpot at the base joint / sqrt(k m l^2)"),
+    _nonnegative("b2", "dashpot at the middle joint / sqrt(k m l^2)"),
+)
+
+
+def ziegler(load: str = "follower") -> SystemDefinition:
+    """Ziegler's two-bar pendulum with a follower or a dead tip load P."""
+    if load not in ZIEGLER_LOADS:
+        raise ValueError(f"load = {load!r} is not allowed; allowed: {', '.join(ZIEGLER_LOADS)}")
+    phi1, phi2 = dof_symbols(("phi1", "phi2"))
+    m1, m2, b1, b2 = (p.symbol for p in ZIEGLER_PARAMETERS)
+    springs = InteractionFamily(
+        name="springs",
+        kind="spring",
+        members=("base", "middle"),
+        variables=((phi1,), (phi2 - phi1,)),
+        law=LINEAR_SPRING,
+    )
+    if load == "follower":  # along the second bar: dW = -P l sin(phi2 - phi1) dphi1
+        vector = (-sp.sin(phi2 - phi1), sp.Integer(0))
+    else:  # vertical: dW = P l (sin phi1 dphi1 + sin phi2 dphi2)
+        vector = (sp.sin(phi1), sp.sin(phi2))
+    coupling = m2 * sp.cos(phi2 - phi1)
+    return SystemDefinition(
+        name="ziegler",
+        title=f"Ziegler's two-bar pendulum, {load} tip load",
+        dofs=("phi1", "phi2"),
+        forces=("M1", "M2"),
+        families=(springs,),
+        parameters=ZIEGLER_PARAMETERS,
+        load=LoadDefinition("P", load, vector, units="k/l", description=f"{load} tip load P (units k/l)"),
+        mass=((m1 + m2, coupling), (coupling, m2)),
+        damping=((b1 + b2, -b2), (-b2, b2)),
+        units=SystemUnits(
+            displacement="rad",
+            displacement_description="absolute angle of each bar from the vertical",
+            force="1",
+            force_description="external moment conjugate to each bar angle / k",
+            work_description="work of the external moments and of P, in units of k",
+            force_unit="k",
+        ),
+        settings=(("load", load),),
+        reference="Ziegler (1952), Z. Angew. Math. Phys. 3, 96-119; Kirillov (2013), Nonconservative Stability Problems of Modern Physics",
+    )
+

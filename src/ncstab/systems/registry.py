@@ -1,0 +1,171 @@
+"""The systems ncstab ships, by name (ARCHITECTURE.md, "Systems").
+
+Each entry says which structural *settings* build the system (``reduction``
+of the diamond, ``grains`` of a ring, ``links`` of a column, ``load`` of
+Ziegler's pendulum: they fix its dofs and cannot be swept), which numeric
+*parameters* it has (``alpha0``, Ziegler's masses and dashpots: sweepable),
+and builds its :class:`~ncstab.systems.SystemDefinition`.  Add a system here,
+nowhere else.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+from typing import Any, Callable
+
+from ncstab.laws.definition import ALPHA0_SPEC, ParameterSpec
+from ncstab.systems.bars import ZIEGLER_LOADS, ZIEGLER_PARAMETERS, column, ziegler
+from ncstab.systems.definition import SystemDefinition
+from ncstab.systems.granular import axes_diamond, ring, symmetric_diamond
+
+__all__ = ["REDUCTIONS", "SYSTEMS", "Setting", "SystemKind", "system_definition"]
+
+#: Reductions of the diamond.
+REDUCTIONS = ("symmetric", "axes")
+
+
+def _whole_at_least(low: int) -> Callable[[Any], str | None]:
+    def check(value: Any) -> str | None:
+        if isinstance(value, bool) or not isinstance(value, int) or value < low:
+            return f"a whole number >= {low}"
+        return None
+
+    return check
+
+
+def _one_of(choices: tuple[str, ...]) -> Callable[[Any], str | None]:
+    def check(value: Any) -> str | None:
+        return None if value in choices else f"one of {', '.join(choices)}"
+
+    return check
+
+
+@dataclass(frozen=True)
+class Setting:
+    """A structural setting of a system (``grains = 6``): not sweepable.
+
+    Attributes
+    ----------
+    name, description
+        Its key in ``[system]`` and what it means.
+    default
+        The value when it is not given, or ``None``: it must be given.
+    check
+        ``value -> None`` if allowed, else a phrase saying what is allowed.
+    """
+
+    name: str
+    description: str
+    default: Any
+    check: Callable[[Any], str | None]
+
+
+@dataclass(frozen=True)
+class SystemKind:
+    """One shipped system: its settings, parameters and definition.
+
+    Attributes
+    ----------
+    name, title
+        Its ``[system] name`` and a line on what it is.
+    settings
+        Structural settings.
+    parameter_specs
+        Numeric parameters (sweepable).
+    shorthands
+        ``[system]`` keys that set several parameters at once
+        (``damping = [b1, b2]``).
+    granular
+        Whether it has grains, secondary contacts and the ``kappa`` parameter.
+    own_laws
+        Whether its interactions have laws of their own (no ``[laws]`` needed).
+    build
+        ``settings -> SystemDefinition``.
+    """
+
+    name: str
+    title: str
+    settings: tuple[Setting, ...]
+    parameter_specs: tuple[ParameterSpec, ...]
+    shorthands: tuple[tuple[str, tuple[str, ...]], ...]
+    granular: bool
+    own_laws: bool
+    build: Callable[..., SystemDefinition]
+
+    def setting_names(self) -> tuple[str, ...]:
+        return tuple(s.name for s in self.settings)
+
+    def check_settings(self, given: dict[str, Any]) -> dict[str, Any]:
+        """Complete ``given`` with defaults; raise ValueError naming a bad setting."""
+        known = {s.name: s for s in self.settings}
+        for key in given:
+            if key not in known:
+                allowed = ", ".join(known) or "none"
+                raise ValueError(f"{key!r} is not a setting of system {self.name!r} (its settings: {allowed})")
+        out = {}
+        for setting in self.settings:
+            value = given.get(setting.name, setting.default)
+            if value is None:
+                raise ValueError(f"system {self.name!r} needs {setting.name} ({setting.description})")
+            problem = setting.check(value)
+            if problem is not None:
+                raise ValueError(f"{setting.name} = {value!r} is not allowed for system {self.name!r}: give {problem}")
+            out[setting.name] = value
+        return out
+
+
+def _diamond(reduction: str = "symmetric") -> SystemDefinition:
+    return symmetric_diamond() if reduction == "symmetric" else axes_diamond()
+
+
+#: Every system ncstab knows, by name.
+SYSTEMS: dict[str, SystemKind] = {
+    "diamond": SystemKind(
+        name="diamond",
+        title="the seed's four-grain diamond (Figs. 1-2)",
+        settings=(Setting("reduction", "symmetric (2 dofs, the seed's) or axes (4 dofs)", "symmetric", _one_of(REDUCTIONS)),),
+        parameter_specs=(ALPHA0_SPEC,),
+        shorthands=(),
+        granular=True,
+        own_laws=False,
+        build=_diamond,
+    ),
+    "ring": SystemKind(
+        name="ring",
+        title="n grains on a regular n-gon, each free along its radius",
+        settings=(Setting("grains", "the number of grains, n >= 3", None, _whole_at_least(3)),),
+        parameter_specs=(),
+        shorthands=(),
+        granular=True,
+        own_laws=False,
+        build=ring,
+    ),
+    "column": SystemKind(
+        name="column",
+        title="Hencky's column: n rigid links, rotational springs, axial dead load P",
+        settings=(Setting("links", "the number of rigid links, n >= 2", None, _whole_at_least(2)),),
+        parameter_specs=(),
+        shorthands=(),
+        granular=False,
+        own_laws=True,
+        build=column,
+    ),
+    "ziegler": SystemKind(
+        name="ziegler",
+        title="Ziegler's two-bar pendulum, follower or dead tip load P",
+        settings=(Setting("load", "the tip load: follower or dead", "follower", _one_of(ZIEGLER_LOADS)),),
+        parameter_specs=ZIEGLER_PARAMETERS,
+        shorthands=(("masses", ("m1", "m2")), ("damping", ("b1", "b2"))),
+        granular=False,
+        own_laws=True,
+        build=ziegler,
+    ),
+}
+
+
+@functools.lru_cache(maxsize=None)
+def system_definition(name: str, settings: tuple[tuple[str, Any], ...] = ()) -> SystemDefinition:
+    """The definition of the shipped system ``name`` with ``settings`` (cached: built once)."""
+    kind = SYSTEMS[name]
+    return kind.build(**kind.check_settings(dict(settings)))
