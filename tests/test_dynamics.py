@@ -11,6 +11,10 @@ Units: l = 1, k = 1, m = 1 (P in k/l, time in sqrt(m l^2 / k), b in sqrt(k m l^2
 from __future__ import annotations
 
 import math
+import re
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -357,6 +361,12 @@ def test_a_singular_or_non_finite_case_gives_nan_and_spares_the_others(rng):
         values = function(mass, damp, stiffness)
         assert np.isnan(values[[1, 4]]).all() and np.isfinite(values[[0, 2, 3, 5]]).all()
     assert np.isnan(frequency_discriminant(mass, stiffness)[[1, 4]]).all()
+    # The functions that need no M^-1: NaN only where an input is not finite.
+    assert np.isnan(divergence_indicator(mass, damp, stiffness)[4])
+    assert np.isfinite(np.delete(divergence_indicator(mass, damp, stiffness), 4)).all()
+    coefficients = characteristic_polynomial(mass, damp, stiffness)
+    assert np.isnan(coefficients[4]).all() and np.isfinite(np.delete(coefficients, 4, axis=0)).all()
+    assert np.isnan(hurwitz_determinants(coefficients)[4]).all()
 
 
 def test_shape_errors_name_the_matrix():
@@ -560,3 +570,37 @@ def test_one_degree_of_freedom_oscillator():
     assert float(critical_frequency([[m]], [[c]], [[k]])) == pytest.approx(
         abs(expected.imag).max(), rel=1e-14
     )
+
+
+# --- docs/dynamic-stability.md stays true -----------------------------------------------------
+
+
+def test_the_documented_example_runs_and_prints_what_the_page_shows(tmp_path):
+    text = (Path(__file__).parent.parent / "docs" / "dynamic-stability.md").read_text(
+        encoding="utf-8"
+    )
+    match = re.search(r"```python\n(.*?)```\n\nprints\n\n```\n(.*?)```", text, re.DOTALL)
+    assert match, "docs/dynamic-stability.md: no example followed by its output"
+    code, shown = match.groups()
+    done = subprocess.run(
+        [sys.executable, "-c", code],
+        check=False,
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        timeout=120,
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout == shown
+
+
+def test_a_graded_mass_is_regular_and_dependent_columns_are_not():
+    # Column scaling leaves |det M| / prod |M_j| unchanged: diag(1, 1e-8) is a regular
+    # mass (a light dof gives a fast mode, s = +-1e4 i) ...
+    spectrum = dynamic_spectrum(np.diag([1.0, 1e-8]), None, np.eye(2))
+    assert_same_roots(spectrum, np.array([1j, -1j, 1e4j, -1e4j]), 1e-12)
+    # ... while columns dependent to rounding (ratio 2e-16 <= 2 eps) are singular,
+    # and a ratio of 5e-13 is not (its spectrum is finite, if ill-conditioned).
+    mass = np.array([[[1.0, 1.0], [1.0, 1.0 + 4e-16]], [[1.0, 1.0], [1.0, 1.0 + 1e-12]]])
+    spectrum = dynamic_spectrum(mass, None, np.eye(2))
+    assert np.isnan(spectrum[0]).all() and np.isfinite(spectrum[1]).all()

@@ -7,6 +7,7 @@ Coefficients are stored highest degree first, like :func:`numpy.roots` and
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ncstab.operators.dynamic_matrices import as_dynamic_matrices
 
@@ -14,7 +15,7 @@ __all__ = ["characteristic_polynomial", "hurwitz_determinants", "hurwitz_matrix"
 
 
 def characteristic_polynomial(
-    mass: np.ndarray, damping: np.ndarray | None, stiffness: np.ndarray
+    mass: ArrayLike, damping: ArrayLike | None, stiffness: ArrayLike
 ) -> np.ndarray:
     """Real coefficients of p(s) = det(M s^2 + C s + K), highest degree first.
 
@@ -134,7 +135,7 @@ def _polynomial_by_interpolation(
     return np.where(finite[..., None], coefficients[..., ::-1], np.nan)
 
 
-def hurwitz_matrix(coefficients: np.ndarray) -> np.ndarray:
+def hurwitz_matrix(coefficients: ArrayLike) -> np.ndarray:
     """The N x N Hurwitz matrix of a0 s^N + a1 s^(N-1) + ... + aN.
 
     H[i, j] = a_{2j - i + 1} (0-based i, j; a_k = 0 outside 0..N)::
@@ -166,7 +167,7 @@ def hurwitz_matrix(coefficients: np.ndarray) -> np.ndarray:
     return np.where(inside, coefficients[..., np.clip(index, 0, degree)], 0.0)
 
 
-def hurwitz_determinants(coefficients: np.ndarray) -> np.ndarray:
+def hurwitz_determinants(coefficients: ArrayLike) -> np.ndarray:
     """Leading principal minors Delta_1..Delta_N of the Hurwitz matrix.
 
     Routh-Hurwitz: for a0 > 0, every root has Re s < 0 if and only if
@@ -187,5 +188,8 @@ def hurwitz_determinants(coefficients: np.ndarray) -> np.ndarray:
         ``(..., N)``: Delta_1 .. Delta_N.
     """
     hurwitz = hurwitz_matrix(coefficients)
+    finite = np.isfinite(hurwitz).all(axis=(-2, -1))
+    hurwitz = np.where(finite[..., None, None], hurwitz, 0.0)  # NaN below, without LAPACK's warning
     degree = hurwitz.shape[-1]
-    return np.stack([np.linalg.det(hurwitz[..., :k, :k]) for k in range(1, degree + 1)], axis=-1)
+    minors = np.stack([np.linalg.det(hurwitz[..., :k, :k]) for k in range(1, degree + 1)], axis=-1)
+    return np.where(finite[..., None], minors, np.nan)

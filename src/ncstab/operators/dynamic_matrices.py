@@ -7,6 +7,7 @@ Shared by :mod:`ncstab.operators.dynamics` and
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ncstab.operators.indicators import det_K
 
@@ -14,7 +15,7 @@ __all__ = ["as_dynamic_matrices", "regular_mass", "solve_mass"]
 
 
 def as_dynamic_matrices(
-    mass: np.ndarray, damping: np.ndarray | None, stiffness: np.ndarray
+    mass: ArrayLike, damping: ArrayLike | None, stiffness: ArrayLike
 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
     """Validate M, C, K and broadcast them to one batch shape ``(..., n, n)``.
 
@@ -55,21 +56,31 @@ def as_dynamic_matrices(
 def regular_mass(mass: np.ndarray) -> np.ndarray:
     """``(...)`` bool: M finite and not singular to working precision.
 
-    The test is sigma_min(M) > n eps sigma_max(M); for n = 2 it is written with
-    sigma_min sigma_max = |det M| and sigma_max^2 <= |M|_F^2 (no SVD).
+    Hadamard's inequality |det M| <= prod_j |M_j| (the Euclidean norms of the
+    columns) makes h = |det M| / prod_j |M_j| a measure in [0, 1] of how far the
+    columns are from linearly dependent, unchanged by scaling the columns (a
+    graded mass matrix such as diag(1, 1e-8) has h = 1).  M is taken as singular
+    where h <= n eps: then the smallest singular value of M with unit columns is
+    at most n eps n^((n-1)/2).  det M is the closed form for n <= 2 and LU
+    beyond; an exact zero pivot gives det M = 0, so the solve that follows never
+    meets one.
+
+    Parameters
+    ----------
+    mass
+        ``(..., n, n)``.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(...)`` bool.
     """
     n = mass.shape[-1]
     finite = np.isfinite(mass).all(axis=(-2, -1))
     safe = np.where(finite[..., None, None], mass, 1.0)
-    eps = np.finfo(float).eps
-    if n == 1:
-        regular = safe[..., 0, 0] != 0
-    elif n == 2:
-        regular = np.abs(det_K(safe)) > n * eps * np.einsum("...ij,...ij->...", safe, safe)
-    else:
-        singular_values = np.linalg.svd(safe, compute_uv=False)
-        regular = singular_values[..., -1] > n * eps * singular_values[..., 0]
-    return finite & regular
+    determinant = det_K(safe) if n == 2 else np.linalg.det(safe)
+    column_norms = np.sqrt(np.einsum("...ij,...ij->...j", safe, safe))
+    return finite & (np.abs(determinant) > n * np.finfo(float).eps * np.prod(column_norms, axis=-1))
 
 
 def solve_mass(mass: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

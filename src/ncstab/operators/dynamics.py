@@ -19,15 +19,16 @@ says whether a state is stable but is not smooth (a maximum over roots, flat at
 0 for an undamped system), so the events are located on the polynomial
 indicators, which are smooth functions of the entries of M, C and K.
 
-Where M is singular to working precision (smallest singular value at most
-n * eps times the largest) or an input is not finite, the functions that need
-M^-1 return NaN for that case; the other cases are unaffected, and every case's
+Where M is singular to working precision (|det M| at most n eps times the
+product of its column norms, :func:`~ncstab.operators.dynamic_matrices.regular_mass`)
+or an input is not finite, the functions that need M^-1 return NaN for that case; the other cases are unaffected, and every case's
 result is the same whether it is computed alone or in a batch.
 """
 
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ncstab.operators.characteristic_polynomial import characteristic_polynomial, hurwitz_matrix
 from ncstab.operators.dynamic_matrices import as_dynamic_matrices, regular_mass, solve_mass
@@ -51,7 +52,7 @@ def _undamped(damping: np.ndarray | None, batch: tuple[int, ...]) -> np.ndarray:
 
 
 def dynamic_spectrum(
-    mass: np.ndarray, damping: np.ndarray | None, stiffness: np.ndarray
+    mass: ArrayLike, damping: ArrayLike | None, stiffness: ArrayLike
 ) -> np.ndarray:
     """The 2n roots s of det(M s^2 + C s + K) = 0, Eq. (1), sorted.
 
@@ -86,7 +87,7 @@ def dynamic_spectrum(
 
 
 def flutter_indicator(
-    mass: np.ndarray, damping: np.ndarray | None, stiffness: np.ndarray
+    mass: ArrayLike, damping: ArrayLike | None, stiffness: ArrayLike
 ) -> np.ndarray:
     """Growth rate max Re s over the roots of Eq. (1): ``(...)``, > 0 unstable.
 
@@ -100,19 +101,21 @@ def flutter_indicator(
 
 
 def divergence_indicator(
-    mass: np.ndarray, damping: np.ndarray | None, stiffness: np.ndarray
+    mass: ArrayLike, damping: ArrayLike | None, stiffness: ArrayLike
 ) -> np.ndarray:
     """det K ``(...)``: a real root s of Eq. (1) passes through 0 where it vanishes.
 
     At s = 0 the characteristic polynomial is det(M 0 + C 0 + K) = det K, so
     s = 0 is a root exactly when det K = 0, whatever M and C; a simple root
     crossing 0 changes the sign of det K.  M and C are only checked for shape.
+    NaN where K is not finite.
     """
     mass, damping, stiffness = as_dynamic_matrices(mass, damping, stiffness)
-    return det_K(stiffness)
+    finite = np.isfinite(stiffness).all(axis=(-2, -1))
+    return np.where(finite, det_K(np.where(finite[..., None, None], stiffness, 0.0)), np.nan)
 
 
-def frequency_discriminant(mass: np.ndarray, stiffness: np.ndarray) -> np.ndarray:
+def frequency_discriminant(mass: ArrayLike, stiffness: ArrayLike) -> np.ndarray:
     """Discriminant of q(mu) = det(M mu + K), the undamped polynomial in mu = s^2.
 
     With C = 0 the roots of Eq. (1) are s = +-sqrt(mu) for the n roots mu of q.
@@ -166,7 +169,7 @@ def frequency_discriminant(mass: np.ndarray, stiffness: np.ndarray) -> np.ndarra
 
 
 def flutter_onset_indicator(
-    mass: np.ndarray, damping: np.ndarray | None, stiffness: np.ndarray
+    mass: ArrayLike, damping: ArrayLike | None, stiffness: ArrayLike
 ) -> np.ndarray:
     """Smooth function whose zero is a flutter onset: ``(...)``, > 0 on the stable side.
 
@@ -211,7 +214,7 @@ def flutter_onset_indicator(
 
 
 def critical_frequency(
-    mass: np.ndarray, damping: np.ndarray | None, stiffness: np.ndarray
+    mass: ArrayLike, damping: ArrayLike | None, stiffness: ArrayLike
 ) -> np.ndarray:
     """Imaginary part omega >= 0 of the critical pair s = +-i omega at an onset point.
 
