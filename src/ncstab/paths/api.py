@@ -8,6 +8,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from ncstab.laws.definition import LawDefinition
 from ncstab.laws.registry import Law, law_definition, make_law
 from ncstab.paths.engine import follow_cases
 from ncstab.paths.model import CaseBatch
@@ -138,7 +139,7 @@ class CaseRange:
 
 
 def case_batch(
-    law_name: str,
+    law_name: str | LawDefinition,
     spec: SystemSpec,
     values: dict[str, np.ndarray],
     size: int,
@@ -149,8 +150,9 @@ def case_batch(
     :meth:`ParameterGrid.case_values`); missing law or system parameters take
     their defaults.  Used by :func:`follow` and by chunked study runs
     (:mod:`ncstab.studies.chunked`), which follow a slice of the cases.
+    ``law_name`` is a catalogue name or a definition (a user law).
     """
-    definition = law_definition(law_name)
+    definition = law_name if isinstance(law_name, LawDefinition) else law_definition(law_name)
     if spec.normal == "rigid":
         alpha0 = values.get("alpha0", np.full(size, np.pi / 4))
         law = make_law(definition, gamma=np.zeros(size), alpha0=alpha0)
@@ -174,7 +176,7 @@ def case_batch(
 
 def follow(
     system: SystemSpec | str,
-    laws: Sequence[str] | str,
+    laws: Sequence[str | LawDefinition | Law] | str | LawDefinition | Law,
     programme: LoadingProgramme | Sequence[Mapping[str, Any]],
     parameters: Mapping[str, Any] | None = None,
     options: PathOptions | None = None,
@@ -189,7 +191,10 @@ def follow(
     system
         A :class:`SystemSpec` or a system name (``"diamond"``).
     laws
-        Law names (with modifiers, ``"mcnamara+no_tension"``); a sweep dimension.
+        Law names (with modifiers, ``"mcnamara+no_tension"``), law definitions
+        (user laws: :func:`ncstab.laws.user_law`) or laws (:func:`ncstab.make_law`,
+        whose parameter values serve where ``parameters`` gives none); a sweep
+        dimension.
     programme
         A validated :class:`LoadingProgramme` or raw stage tables.
     parameters
@@ -217,12 +222,15 @@ def follow(
     """
     spec = SystemSpec(system) if isinstance(system, str) else system
     options = options or PathOptions()
-    law_names = [laws] if isinstance(laws, str) else list(laws)
+    entries = [laws] if isinstance(laws, (str, LawDefinition, Law)) else list(laws)
+    definitions = [
+        e.definition if isinstance(e, Law) else e if isinstance(e, LawDefinition) else law_definition(e) for e in entries
+    ]
+    law_names = [e if isinstance(e, str) else d.name for e, d in zip(entries, definitions)]
     if not law_names:
         raise ValueError("give at least one law")
     if len(set(law_names)) != len(law_names):
         raise ValueError(f"laws: each law once, got {law_names}")
-    definitions = [law_definition(name) for name in law_names]
     system_class = SYSTEMS[spec.name]
     if not isinstance(programme, LoadingProgramme):
         programme = parse_programme(programme, system_class.dof_names, system_class.force_names)  # type: ignore[attr-defined]
@@ -258,11 +266,13 @@ def follow(
         bar = tqdm(total=grid.size * len(law_names), unit="case", desc="ncstab", leave=False)
     results = []
     try:
-        for name in law_names:
-            batch = case_batch(name, spec, values, grid.size)
+        for entry, definition in zip(entries, definitions):
+            own = dict(entry.parameters) if isinstance(entry, Law) else {}  # a Law's values, where the grid gives none
+            law_values = {**{k: np.broadcast_to(v, (grid.size,)) for k, v in own.items()}, **values}
+            batch = case_batch(definition, spec, law_values, grid.size)
             results.append(
                 follow_cases(
-                    batch, programme, values, options, spec.secondary_contacts,
+                    batch, programme, law_values, options, spec.secondary_contacts,
                     progress=bar.update if bar is not None else None,
                 )
             )
@@ -279,4 +289,5 @@ def follow(
         dof_names=system_class.dof_names,  # type: ignore[attr-defined]
         force_names=system_class.force_names,  # type: ignore[attr-defined]
         study_text=study_text,
+        definitions=tuple(definitions),
     )

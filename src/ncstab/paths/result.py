@@ -24,6 +24,7 @@ from ncstab.paths.variables import CASE_DIMENSION, EVENT_FIELDS, VARIABLES
 if TYPE_CHECKING:  # pragma: no cover
     import xarray
 
+    from ncstab.laws.definition import LawDefinition
     from ncstab.paths.api import ParameterGrid
 
 __all__ = ["Path", "parameter_attributes"]
@@ -44,6 +45,9 @@ class Path:
     results
         One :class:`~ncstab.paths.engine.CaseResult` per law, cases flat in C
         order over the grid.
+    definitions
+        The laws' definitions, in the order of :attr:`laws` (user laws are
+        not in the catalogue); empty: looked up by name.
     """
 
     laws: tuple[str, ...]
@@ -55,6 +59,14 @@ class Path:
     dof_names: tuple[str, ...]
     force_names: tuple[str, ...]
     study_text: str = ""
+    definitions: tuple["LawDefinition", ...] = ()
+
+    def law_definition(self, name: str) -> "LawDefinition":
+        """The definition of one of :attr:`laws` (from :attr:`definitions` when given, else the catalogue)."""
+        from ncstab.laws.registry import law_definition
+
+        known = {law: definition for law, definition in zip(self.laws, self.definitions)}
+        return known[name] if name in known else law_definition(name)
 
     @property
     def force_unit(self) -> str:
@@ -268,10 +280,9 @@ class Path:
         return dataset
 
     def _law_classes(self) -> dict[str, str]:
-        from ncstab.laws.registry import law_definition
         from ncstab.symbolic.classification import classify
 
-        return {name: classify(law_definition(name)).kind for name in self.laws}
+        return {name: classify(self.law_definition(name)).kind for name in self.laws}
 
     def _mixed_control(self, K: np.ndarray, stage: np.ndarray) -> np.ndarray:
         """det K_SS per stored state, with S the force-controlled dofs of its stage."""

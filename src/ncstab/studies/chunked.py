@@ -260,7 +260,8 @@ def run_chunk(study: Study, law: str, start: int, stop: int) -> "xr.Dataset":
     """
     grid = CaseRange(ParameterGrid.from_mapping(study.parameters), start, stop)
     values = grid.case_values()
-    batch = case_batch(law, study.system, values, grid.size)
+    definition = study.law_definition(law)
+    batch = case_batch(definition, study.system, values, grid.size)
     result = follow_cases(batch, study.programme, values, study.options, study.system.secondary_contacts)
     system_class = SYSTEMS[study.system.name]
     path = Path(
@@ -273,6 +274,7 @@ def run_chunk(study: Study, law: str, start: int, stop: int) -> "xr.Dataset":
         dof_names=system_class.dof_names,  # type: ignore[attr-defined]
         force_names=system_class.force_names,  # type: ignore[attr-defined]
         study_text=study.text,
+        definitions=(definition,),
     )
     return study_dataset(study, path)
 
