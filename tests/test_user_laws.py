@@ -542,3 +542,44 @@ def test_user_law_errors_are_value_errors_that_pickle():
 
 def test_ncstab_exports_the_user_law_api():
     assert ncstab.laws.user_law is user_law
+
+
+# --- the user guide (docs/user-laws.md) stays true ------------------------------------------
+
+GUIDE = Path(__file__).parent.parent / "docs" / "user-laws.md"
+
+
+def guide_blocks(language: str) -> list[str]:
+    import re
+
+    return re.findall(rf"```{language}\n(.*?)```", GUIDE.read_text(encoding="utf-8"), re.DOTALL)
+
+
+def test_the_guide_study_and_its_explanation_are_what_ncstab_says(tmp_path, capsys):
+    (study_text,) = guide_blocks("toml")
+    path = tmp_path / "my_laws.toml"
+    path.write_text(study_text, encoding="utf-8")
+    study = parse_study(study_text)
+    assert study.laws == ("mcnamara", "sine_shear", "my_rate_law", "sine_shear+no_tension")
+    explanation = next(block for block in guide_blocks("text") if block.startswith("sine_shear:"))
+    assert main(["laws", str(path), "--explain", "sine_shear"]) == 0
+    assert capsys.readouterr().out == explanation
+
+
+def test_the_guide_errors_are_what_ncstab_run_says(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    errors = next(block for block in guide_blocks("text") if block.startswith("bad.toml:")).splitlines()
+    tables = ['normal = "-(l - 1)"\ntangential = "gamma*x"', 'normal = "-(l - 1)"\ntangential_rate = "gamma*dalpha**2"',
+              'normal = "__import__(\'os\').system(\'touch PWNED\')"\ntangential = "0"']
+    for table, expected in zip(tables, errors, strict=True):
+        write_bad(tmp_path, table, '["my_law"]', "[laws.my_law]")
+        assert main(["run", "bad.toml", "-q"]) == 2
+        assert capsys.readouterr().err.splitlines()[0] == expected
+    assert not (tmp_path / "PWNED").exists()
+
+
+def test_the_guide_python_example_runs_and_prints_what_it_says(capsys):
+    (code,) = guide_blocks("python")
+    exec(compile(code, str(GUIDE), "exec"), {})  # the documentation's own example, not user input
+    lines = capsys.readouterr().out.splitlines()
+    assert lines == ["weakly hypoelastic", "['hyperelastic' 'weakly hypoelastic' 'strongly hypoelastic']"]
