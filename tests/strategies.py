@@ -24,6 +24,8 @@ EXPECTED_CLASS = {
     "turco": "hyperelastic",
 }
 BASE_LAWS = tuple(EXPECTED_CLASS)
+#: The DEM codes' shear-update rules that the seed's laws do not cover (docs/dem-codes.md).
+DEM_LAWS = ("dem_yade_avoid_ratcheting", "dem_chrono_one_step")
 NO_TENSION_LAWS = tuple(f"{name}+no_tension" for name in BASE_LAWS)
 #: Laws with a total form F(u) (everything but Cundall--Strack).
 TOTAL_FORM_LAWS = tuple(

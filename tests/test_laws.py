@@ -14,7 +14,7 @@ from hypothesis import given, settings
 
 from ncstab.laws import LAWS, MODIFIERS, law_definition, law_names, make_law, no_tension
 from ncstab.symbolic import compile_law, derive_law
-from strategies import BASE_LAWS, NO_TENSION_LAWS, DiamondState, diamond_states, tangential_forces
+from strategies import BASE_LAWS, DEM_LAWS, NO_TENSION_LAWS, DiamondState, diamond_states, tangential_forces
 
 # Values of order 1-10 computed through a handful of floating-point operations
 # differ from the hand-written formula by a few ulp: 1e-13 leaves two orders of
@@ -30,10 +30,13 @@ def _compiled(name: str, state: DiamondState):
 # --- catalogue ------------------------------------------------------------------------
 
 
-def test_catalogue_lists_the_four_seed_laws_their_modified_variants_and_the_spring_laws():
-    assert law_names() == list(BASE_LAWS) + ["linear_spring"]
-    assert set(LAWS) == set(BASE_LAWS)
-    assert law_names(with_modifiers=True) == list(BASE_LAWS) + list(NO_TENSION_LAWS) + ["linear_spring"]
+def test_catalogue_lists_the_seed_laws_the_dem_rules_their_modified_variants_and_the_spring_laws():
+    assert law_names() == list(BASE_LAWS) + list(DEM_LAWS) + ["linear_spring"]
+    assert set(LAWS) == set(BASE_LAWS) | set(DEM_LAWS)
+    dem_no_tension = [f"{name}+no_tension" for name in DEM_LAWS]
+    assert law_names(with_modifiers=True) == (
+        list(BASE_LAWS) + list(DEM_LAWS) + list(NO_TENSION_LAWS) + dem_no_tension + ["linear_spring"]
+    )
     assert set(MODIFIERS) == {"no_tension"}
     assert law_definition("linear_spring").kind == "spring"
 

@@ -21,18 +21,43 @@ def _format_table(rows: list[list[str]], header: list[str]) -> str:
 
 
 def command_laws(args: argparse.Namespace) -> int:
-    """Print the law catalogue with each law's computed class."""
+    """Print the law catalogue, or a study's laws, with each law's computed class;
+    ``--explain NAME``: the derivation of one law's class (exit 2: bad study or name)."""
     import sympy as sp
 
     from ncstab.laws import law_definition, law_names
+    from ncstab.studies import StudyFileError, load_study
     from ncstab.symbolic import classify, kinematic_integrability
+    from ncstab.symbolic.explain import explain_law
 
+    study = None
+    if args.study is not None:
+        try:
+            study = load_study(args.study)
+        except StudyFileError as error:
+            print(str(error), file=sys.stderr)
+            return 2
+        except OSError as error:
+            print(f"{args.study}: cannot read the study file: {error}", file=sys.stderr)
+            return 2
+    if args.explain is not None:
+        try:
+            definition = study.law_definition(args.explain) if study is not None else law_definition(args.explain)
+        except ValueError as error:
+            where = f" in {args.study}" if study is not None else " (a user law needs its study: ncstab laws STUDY.toml --explain NAME)"
+            print(f"ncstab laws: {error}{where}", file=sys.stderr)
+            return 2
+        print(explain_law(definition))
+        return 0
+    names = list(study.laws) if study is not None else law_names(with_modifiers=args.all)
     rows = []
-    for name in law_names(with_modifiers=args.all):
-        definition = law_definition(name)
+    for name in names:
+        definition = study.law_definition(name) if study is not None else law_definition(name)
         result = classify(definition)
         energy = sp.sstr(result.energy) if result.energy is not None else "-"
         rows.append([name, result.kind, definition.equations, energy, result.reason])
+    if study is not None:
+        print(f"{args.study}: the laws of study {study.name!r}")
     print(_format_table(rows, ["law", "class", "seed", "energy W(l, alpha)", "decided by"]))
     print()
     print(f"System kinematics: {kinematic_integrability()}")
@@ -214,10 +239,19 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"ncstab {ncstab.__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    laws = sub.add_parser("laws", help="print the law catalogue and each law's computed class")
+    laws = sub.add_parser(
+        "laws",
+        help="print the law catalogue (or a study's laws) and each law's computed class",
+        description="Print the law catalogue, or the laws of a study file (its user laws too), with each "
+        "law's class computed from its expressions. --explain NAME shows the derivation: which condition "
+        "fails and its residual. Exit code 2: invalid study file or unknown law.",
+    )
+    laws.add_argument("study", nargs="?", metavar="STUDY.toml", help="a study file: list its laws instead")
     laws.add_argument(
         "--all", action="store_true", help="also list every law with the no_tension modifier"
     )
+    laws.add_argument("--explain", metavar="NAME",
+                      help="the derivation of one law's class (a catalogue law, or a law of STUDY.toml)")
     laws.set_defaults(handler=command_laws)
 
     run = sub.add_parser(

@@ -5,6 +5,8 @@ Knows nothing of the other layers.  See ``docs/laws.md`` for the equations.
 
 from ncstab.laws.catalogue import (
     CUNDALL_STRACK,
+    DEM_CHRONO_ONE_STEP,
+    DEM_YADE_AVOID_RATCHETING,
     MCNAMARA,
     TURCO,
     WEAKLY_HYPOELASTIC,
@@ -23,7 +25,9 @@ from ncstab.laws.definition import (
     LawDefinition,
     ParameterSpec,
 )
+from ncstab.laws.formula import FormulaError, UserLawError, parse_formula
 from ncstab.laws.registry import LAWS, MODIFIERS, Law, law_definition, law_names, make_law
+from ncstab.laws.user import user_law
 
 __all__ = [
     "ALPHA",
@@ -31,6 +35,9 @@ __all__ = [
     "ALPHA0_SPEC",
     "CUNDALL_STRACK",
     "DELTA",
+    "DEM_CHRONO_ONE_STEP",
+    "DEM_YADE_AVOID_RATCHETING",
+    "FormulaError",
     "GAMMA",
     "GAMMA_SPEC",
     "L",
@@ -40,6 +47,7 @@ __all__ = [
     "N",
     "T",
     "TURCO",
+    "UserLawError",
     "WEAKLY_HYPOELASTIC",
     "Law",
     "LawDefinition",
@@ -48,4 +56,6 @@ __all__ = [
     "law_names",
     "make_law",
     "no_tension",
+    "parse_formula",
+    "user_law",
 ]

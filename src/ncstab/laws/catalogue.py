@@ -28,6 +28,8 @@ __all__ = [
     "WEAKLY_HYPOELASTIC",
     "MCNAMARA",
     "TURCO",
+    "DEM_YADE_AVOID_RATCHETING",
+    "DEM_CHRONO_ONE_STEP",
     "no_tension",
 ]
 
@@ -83,6 +85,40 @@ TURCO = LawDefinition(
     energy=DELTA**2 / 2 + GAMMA * sp.sin(ALPHA - ALPHA0) ** 2 / 2,
 )
 
+
+# --- DEM codes' shear updates on the diamond (docs/dem-codes.md) -----------------------------
+# Most codes' updates (LIGGGHTS, LAMMPS, MercuryDPM, Kratos, YADE without its ratcheting
+# fix) reduce to CUNDALL_STRACK for a small time step; they differ only by their discrete
+# update.  The two rules below reduce to something else.
+
+#: YADE's default (``Ig2_Sphere_Sphere_ScGeom.avoidGranularRatcheting = True``,
+#: ``ScGeom::getIncidentVel``): the relative velocity is scaled by (R1 + R2)/(R1 + R2 - overlap)
+#: = 2R/l before its tangential part increments the shear force
+#: (``Law2_ScGeom_FrictPhys_CundallStrack``), so dT = k_t 2R dalpha: in dimensionless form
+#: dT = gamma dalpha, the weakly hypoelastic law of seed Eq. (26), as a rate law.
+DEM_YADE_AVOID_RATCHETING = LawDefinition(
+    name="dem_yade_avoid_ratcheting",
+    title="YADE's shear update with avoidGranularRatcheting (its default)",
+    equations="Eq. (26) as a rate law; docs/dem-codes.md",
+    normal_overlap=1 - L,
+    normal_force=DELTA,
+    tangential_rate=(sp.Integer(0), GAMMA),
+    internal_variables=("T",),
+)
+
+#: Chrono's smooth contact (``ChContactSMC``, tangential displacement model ``OneStep``,
+#: the default; ``MultiStep`` falls back to it): the tangential "spring" is k_t |v_t| dt,
+#: one step of relative motion and no history, which vanishes with the time step.  For a
+#: small time step the elastic tangential force is T = 0 (the rotational seed laws at
+#: gamma = 0); gamma is accepted and has no effect.
+DEM_CHRONO_ONE_STEP = LawDefinition(
+    name="dem_chrono_one_step",
+    title="Chrono's SMC contact, one-step tangential displacement (its default)",
+    equations="T = 0 (the seed laws at gamma = 0); docs/dem-codes.md",
+    normal_overlap=1 - L,
+    normal_force=DELTA,
+    tangential_force=sp.Integer(0),
+)
 
 def no_tension(law: LawDefinition) -> LawDefinition:
     """Apply the no-tension modifier of seed Eq. (59) to any law.

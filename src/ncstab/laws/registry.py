@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 from dataclasses import dataclass, field
 from typing import Mapping
@@ -10,12 +11,14 @@ import numpy as np
 
 from ncstab.laws.catalogue import (
     CUNDALL_STRACK,
+    DEM_CHRONO_ONE_STEP,
+    DEM_YADE_AVOID_RATCHETING,
     MCNAMARA,
     TURCO,
     WEAKLY_HYPOELASTIC,
     no_tension,
 )
-from ncstab.laws.definition import LawDefinition
+from ncstab.laws.definition import DELTA, LawDefinition
 from ncstab.laws.spring import LINEAR_SPRING, SpringLaw
 
 __all__ = ["LAWS", "MODIFIERS", "SPRING_LAWS", "Law", "law_definition", "make_law", "law_names"]
@@ -26,6 +29,8 @@ LAWS: dict[str, LawDefinition] = {
     "weakly_hypoelastic": WEAKLY_HYPOELASTIC,
     "mcnamara": MCNAMARA,
     "turco": TURCO,
+    "dem_yade_avoid_ratcheting": DEM_YADE_AVOID_RATCHETING,
+    "dem_chrono_one_step": DEM_CHRONO_ONE_STEP,
 }
 
 #: Laws of rotational springs (bars, columns, pendulums), by name.
@@ -56,8 +61,18 @@ def _catalogue_text() -> str:
     )
 
 
-def law_definition(name: str) -> LawDefinition | SpringLaw:
+def law_definition(
+    name: str, user_laws: Mapping[str, LawDefinition] | None = None
+) -> LawDefinition | SpringLaw:
     """Look a law up by name, with modifiers (``"turco+no_tension"``), or a spring law.
+
+    Parameters
+    ----------
+    name
+        A law name, optionally followed by ``+<modifier>``.
+    user_laws
+        Laws outside the catalogue (a study's ``[laws.<name>]`` tables), by
+        name; looked up before the catalogue (their names never clash with it).
 
     Raises
     ------
@@ -65,21 +80,27 @@ def law_definition(name: str) -> LawDefinition | SpringLaw:
         For an unknown law or modifier; the message lists the catalogue and a
         close match when there is one.
     """
+    known = dict(user_laws or {})
     if not isinstance(name, str) or not name.strip():
         raise ValueError(f"law name must be a non-empty string, got {name!r}; {_catalogue_text()}")
     if name.strip() in SPRING_LAWS:
         return SPRING_LAWS[name.strip()]
     base, *modifiers = [part.strip() for part in name.split("+")]
-    if base not in LAWS:
-        close = difflib.get_close_matches(base, list(LAWS) + list(SPRING_LAWS), n=1)
+    if base not in LAWS and base not in known:
+        close = difflib.get_close_matches(base, list(LAWS) + list(SPRING_LAWS) + list(known), n=1)
         hint = f" (did you mean {close[0]!r}?)" if close else ""
-        raise ValueError(f"unknown law {base!r}{hint}; {_catalogue_text()}")
-    definition = LAWS[base]
+        user = f"; user laws: {', '.join(known)}" if known else ""
+        raise ValueError(f"unknown law {base!r}{hint}; {_catalogue_text()}{user}")
+    definition = known[base] if base in known else LAWS[base]
     for modifier in modifiers:
         if modifier not in MODIFIERS:
             close = difflib.get_close_matches(modifier, MODIFIERS, n=1)
             hint = f" (did you mean {close[0]!r}?)" if close else ""
             raise ValueError(f"unknown law modifier {modifier!r} in {name!r}{hint}; {_catalogue_text()}")
+        if definition.energy is not None and DELTA not in definition.energy.free_symbols:
+            # An energy not written through delta (a user law's) cannot follow the bracket of
+            # the modifier: it is dropped, and the bracketed law's energy, if any, is derived.
+            definition = dataclasses.replace(definition, energy=None)
         definition = MODIFIERS[modifier](definition)
     return definition
 

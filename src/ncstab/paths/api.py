@@ -242,8 +242,10 @@ def follow(
         system with its settings: ``SystemSpec("ring", grains=6)``), or any
         :class:`~ncstab.systems.SystemDefinition` built in Python.
     laws
-        Laws by name (with modifiers, ``"mcnamara+no_tension"``) or as
-        definitions; a sweep dimension.  ``None`` for a system whose
+        Laws by name (with modifiers, ``"mcnamara+no_tension"``), as
+        definitions (a user law) or as :class:`~ncstab.laws.Law` values (whose
+        parameter values stand where ``parameters`` gives none); a sweep
+        dimension.  ``None`` for a system whose
         interactions have laws of their own (``column``, ``ziegler``).
     programme
         A validated :class:`LoadingProgramme` or raw stage tables.
@@ -274,6 +276,9 @@ def follow(
         A malformed loading programme (names the stage and the field).
     """
     model = resolve_model(system, laws, secondary_contacts)
+    entries = [laws] if isinstance(laws, Law) else list(laws) if isinstance(laws, (list, tuple)) else []
+    # A Law's own parameter values stand where the grid gives none.
+    own_values = {entry.name: dict(entry.parameters) for entry in entries if isinstance(entry, Law)}
     options = options or PathOptions()
     definition = model.definition
     if not isinstance(programme, LoadingProgramme):
@@ -315,10 +320,12 @@ def follow(
     results = []
     try:
         for law in model.laws:
-            batch = case_batch(law, model, values, grid.size)
+            own = {k: np.broadcast_to(np.asarray(v, dtype=float), (grid.size,)) for k, v in own_values.get(law.name, {}).items()}
+            law_values = {**own, **values}
+            batch = case_batch(law, model, law_values, grid.size)
             results.append(
                 follow_cases(
-                    batch, programme, values, options, model.secondary_contacts,
+                    batch, programme, law_values, options, model.secondary_contacts,
                     progress=bar.update if bar is not None else None,
                 )
             )

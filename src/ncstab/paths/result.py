@@ -129,6 +129,10 @@ class PathResult:
 
         return path_dataset(self, directions)
 
+    def law_definition(self, name: str):
+        """The definition of one of :attr:`laws` (a catalogue law or a user law)."""
+        return self.model.laws[self.laws.index(name)]
+
     def law_classes(self) -> dict[str, str]:
         """The computed class of every law (:func:`ncstab.symbolic.classify`)."""
         from ncstab.symbolic.classification import classify

@@ -1,6 +1,7 @@
 """Safe arithmetic expressions of pi in study files (``alpha0 = "pi/4"``).
 
-An expression is parsed with :func:`ast.parse` and its tree is *walked*, never
+An expression is parsed and checked by the whitelist of
+:mod:`ncstab.laws.safe_syntax` (the parser user-law formulas share), never
 compiled or evaluated by Python: only numbers, the constants ``pi`` and ``e``,
 unary ``+``/``-``, the binary operators ``+ - * / **`` and calls of a short list
 of functions (:data:`FUNCTIONS`) with positional arguments are allowed.  Anything
@@ -17,6 +18,8 @@ from __future__ import annotations
 import ast
 import math
 from collections.abc import Callable
+
+from ncstab.laws.safe_syntax import ForbiddenConstruct, Whitelist, check_tree, fold, parse_tree, source
 
 __all__ = ["CONSTANTS", "FUNCTIONS", "ExpressionError", "evaluate_expression", "is_expression"]
 
@@ -40,24 +43,26 @@ MAX_LENGTH = 200
 #: Largest absolute exponent of ``**``.
 MAX_EXPONENT = 100.0
 
-_BINARY: dict[type, Callable[[float, float], float]] = {
-    ast.Add: lambda a, b: a + b,
-    ast.Sub: lambda a, b: a - b,
-    ast.Mult: lambda a, b: a * b,
-    ast.Div: lambda a, b: a / b,
-    ast.Pow: math.pow,  # real results only: math.pow(-8, 1/3) raises, ** would give a complex
-}
-_UNARY: dict[type, Callable[[float], float]] = {
-    ast.UAdd: lambda a: +a,
-    ast.USub: lambda a: -a,
-}
-_OPERATOR_SYMBOLS = {
-    ast.FloorDiv: "//", ast.Mod: "%", ast.MatMult: "@", ast.LShift: "<<", ast.RShift: ">>",
-    ast.BitOr: "|", ast.BitAnd: "&", ast.BitXor: "^", ast.Not: "not", ast.Invert: "~",
+_BINARY: dict[str, Callable[[float, float], float]] = {
+    "+": lambda a, b: a + b,
+    "-": lambda a, b: a - b,
+    "*": lambda a, b: a * b,
+    "/": lambda a, b: a / b,
+    "**": math.pow,  # real results only: math.pow(-8, 1/3) raises, ** would give a complex
 }
 ALLOWED = (
     "numbers, pi, e, + - * / ** and parentheses, and the functions "
     + ", ".join(FUNCTIONS)
+)
+WHITELIST = Whitelist(
+    names=frozenset(CONSTANTS),
+    functions={name: arities for name, (_, arities) in FUNCTIONS.items()},
+    allowed=ALLOWED,
+    unknown_name=lambda name: (
+        f"name {name!r} is not allowed in an expression (only pi and e); "
+        "a parameter is referred to by its name alone, not inside an expression"
+    ),
+    max_length=MAX_LENGTH,
 )
 
 
@@ -79,102 +84,31 @@ class ExpressionError(ValueError):
         super().__init__(message)
 
 
-def _source(node: ast.AST, limit: int = 60) -> str:
-    text = ast.unparse(node)  # turns the tree back into text; evaluates nothing
-    return text if len(text) <= limit else text[: limit - 3] + "..."
+class _FloatBuilder:
+    """Folds a checked tree into a float, as Python's floating point does."""
 
+    def __init__(self, text: str) -> None:
+        self.text = text
 
-def _describe(node: ast.AST) -> str:
-    """A user-facing name for a construct that is not allowed."""
-    kinds = {
-        ast.Attribute: "attribute access",
-        ast.Subscript: "subscript",
-        ast.Lambda: "lambda",
-        ast.ListComp: "comprehension",
-        ast.SetComp: "comprehension",
-        ast.DictComp: "comprehension",
-        ast.GeneratorExp: "generator expression",
-        ast.Compare: "comparison",
-        ast.BoolOp: "boolean operator",
-        ast.IfExp: "conditional expression",
-        ast.NamedExpr: "assignment expression",
-        ast.JoinedStr: "f-string",
-        ast.List: "list",
-        ast.Tuple: "tuple",
-        ast.Dict: "dict",
-        ast.Set: "set",
-        ast.Starred: "starred expression",
-        ast.Await: "await",
-        ast.Yield: "yield",
-        ast.YieldFrom: "yield",
-        ast.Slice: "slice",
-    }
-    return kinds.get(type(node), type(node).__name__)
-
-
-def _walk(node: ast.AST, text: str) -> float:
-    if isinstance(node, ast.Expression):
-        return _walk(node.body, text)
-    if isinstance(node, ast.Constant):
-        value = node.value
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ExpressionError(
-                text, _source(node), f"{type(value).__name__} constant {_source(node)} is not allowed; allowed: {ALLOWED}"
-            )
+    def number(self, value: int | float, node: ast.Constant) -> float:
         return float(value)
-    if isinstance(node, ast.Name):
-        if node.id in CONSTANTS:
-            return CONSTANTS[node.id]
-        if node.id in FUNCTIONS:
-            raise ExpressionError(text, node.id, f"function {node.id!r} must be called, e.g. {node.id}(2)")
-        raise ExpressionError(
-            text, node.id,
-            f"name {node.id!r} is not allowed in an expression (only pi and e); "
-            "a parameter is referred to by its name alone, not inside an expression",
-        )
-    if isinstance(node, ast.UnaryOp):
-        operation = _UNARY.get(type(node.op))
-        if operation is None:
-            symbol = _OPERATOR_SYMBOLS.get(type(node.op), type(node.op).__name__)
-            raise ExpressionError(text, symbol, f"operator {symbol!r} is not allowed; allowed: {ALLOWED}")
-        return operation(_walk(node.operand, text))
-    if isinstance(node, ast.BinOp):
-        operation = _BINARY.get(type(node.op))
-        if operation is None:
-            symbol = _OPERATOR_SYMBOLS.get(type(node.op), type(node.op).__name__)
-            raise ExpressionError(text, symbol, f"operator {symbol!r} is not allowed; allowed: {ALLOWED}")
-        left = _walk(node.left, text)
-        right = _walk(node.right, text)
-        if isinstance(node.op, ast.Pow) and abs(right) > MAX_EXPONENT:
+
+    def name(self, name: str, node: ast.Name) -> float:
+        return CONSTANTS[name]
+
+    def unary(self, operator: str, operand: float, node: ast.UnaryOp) -> float:
+        return -operand if operator == "-" else +operand
+
+    def binary(self, operator: str, left: float, right: float, node: ast.BinOp) -> float:
+        if operator == "**" and abs(right) > MAX_EXPONENT:
             raise ExpressionError(
-                text, _source(node), f"exponent {right:g} in {_source(node)!r} is too large (at most {MAX_EXPONENT:g})"
+                self.text, source(node),
+                f"exponent {right:g} in {source(node)!r} is too large (at most {MAX_EXPONENT:g})",
             )
-        return operation(left, right)
-    if isinstance(node, ast.Call):
-        if not isinstance(node.func, ast.Name) or node.func.id not in FUNCTIONS:
-            name = _source(node.func)
-            raise ExpressionError(
-                text, name, f"call of {name!r} is not allowed; the functions are: {', '.join(FUNCTIONS)}"
-            )
-        function, arities = FUNCTIONS[node.func.id]
-        if node.keywords:
-            keyword = node.keywords[0]
-            shown = f"{keyword.arg}=" if keyword.arg else "**"
-            raise ExpressionError(
-                text, shown, f"keyword argument {shown!r} in a call of {node.func.id} is not allowed"
-            )
-        if any(isinstance(arg, ast.Starred) for arg in node.args):
-            raise ExpressionError(text, "*", f"starred argument in a call of {node.func.id} is not allowed")
-        if len(node.args) not in arities:
-            expected = " or ".join(map(str, arities))
-            raise ExpressionError(
-                text, _source(node), f"{node.func.id} takes {expected} argument(s), got {len(node.args)}"
-            )
-        arguments = [_walk(arg, text) for arg in node.args]
-        return function(*arguments)
-    raise ExpressionError(
-        text, _source(node), f"{_describe(node)} {_source(node)!r} is not allowed; allowed: {ALLOWED}"
-    )
+        return _BINARY[operator](left, right)
+
+    def call(self, function: str, arguments: list[float], node: ast.Call) -> float:
+        return FUNCTIONS[function][0](*arguments)
 
 
 def evaluate_expression(text: str) -> float:
@@ -200,23 +134,14 @@ def evaluate_expression(text: str) -> float:
     """
     if not isinstance(text, str):
         raise ExpressionError(str(text), "", f"expected a number or an expression string, got {text!r}")
-    stripped = text.strip()
-    if not stripped:
-        raise ExpressionError(text, "", "empty expression")
-    if len(stripped) > MAX_LENGTH:
-        raise ExpressionError(text, "", f"expression longer than {MAX_LENGTH} characters")
     try:
-        tree = ast.parse(stripped, mode="eval")
-    except SyntaxError as error:
-        raise ExpressionError(text, "", f"{text!r} is not a valid expression ({error.msg}); allowed: {ALLOWED}") from None
-    except (ValueError, RecursionError, MemoryError):
-        raise ExpressionError(text, "", f"{text!r} is not a valid expression; allowed: {ALLOWED}") from None
-    try:
-        value = _walk(tree, text)
+        tree = parse_tree(text, WHITELIST)
+        check_tree(tree, WHITELIST)
+        value = fold(tree, _FloatBuilder(text))
+    except ForbiddenConstruct as error:
+        raise ExpressionError(text, error.construct, str(error)) from None
     except ExpressionError:
         raise
-    except RecursionError:
-        raise ExpressionError(text, "", f"{text!r} is nested too deeply") from None
     except (ArithmeticError, ValueError) as error:
         raise ExpressionError(text, "", f"{text!r} cannot be evaluated: {error}") from None
     if not math.isfinite(value):

@@ -6,7 +6,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ncstab.laws.registry import law_definition, make_law
+from ncstab.laws.registry import make_law
 from ncstab.operators.state_map import STATE_MAP_FIELDS, state_map
 from ncstab.systems import DiamondChain
 
@@ -36,7 +36,7 @@ def add_state_maps(
         raise ValueError("state maps over (D1, D2) are drawn for the seed's reduced diamond only")
     fields = {name: np.full((len(path.laws), size, n1, n2), np.nan) for name in STATE_MAP_FIELDS}
     for k, name in enumerate(path.laws):
-        definition = law_definition(name)
+        definition = path.law_definition(name)
         if not definition.has_total_form or path.model.normal != "deformable":
             continue
         parameters = {

@@ -47,7 +47,7 @@ def run_study(study: Study, progress: bool = False) -> xr.Dataset:
     """
     path = follow(
         study.system,
-        list(study.laws),
+        list(study.law_definitions),
         study.programme,
         study.parameters,
         study.options,

@@ -33,6 +33,7 @@ from ncstab.paths.programme import (
     parse_programme,
 )
 from ncstab.studies.expressions import ExpressionError, evaluate_expression, is_expression
+from ncstab.studies.user_laws import user_laws_from_tables
 from ncstab.systems import SYSTEMS, SystemKind
 
 __all__ = [
@@ -149,6 +150,11 @@ class Study:
         Figure kinds to draw (:data:`FIGURE_KINDS`).
     output
         ``[output] file``, or ``None`` for ``results/<name>.nc``.
+    map
+        The ``[map]`` section, or ``None``.
+    user_laws
+        The laws of the ``[laws.<name>]`` tables (:func:`ncstab.laws.user_law`),
+        without modifiers; :meth:`law_definition` resolves any of :attr:`laws`.
     """
 
     name: str
@@ -163,6 +169,16 @@ class Study:
     figures: tuple[str, ...] = DEFAULT_FIGURES
     output: str | None = None
     map: "StudyMap | None" = None
+    user_laws: tuple[LawDefinition, ...] = ()
+
+    def law_definition(self, name: str) -> LawDefinition:
+        """The definition of one of :attr:`laws` (a user law of the file or a catalogue law)."""
+        return law_definition(name, {definition.name: definition for definition in self.user_laws})
+
+    @property
+    def law_definitions(self) -> tuple[LawDefinition, ...]:
+        """The definitions of :attr:`laws`, in order: what every run mode follows."""
+        return tuple(self.law_definition(name) for name in self.laws)
 
     @property
     def sweep(self) -> dict[str, list[float]]:
@@ -173,8 +189,8 @@ class Study:
         """The :class:`~ncstab.paths.api.Model` of the study (of one of its laws)."""
         from ncstab.paths.api import resolve_model
 
-        laws = list(self.laws) if law is None else [law]
-        return resolve_model(self.system, laws or None)
+        names = list(self.laws) if law is None else [law]
+        return resolve_model(self.system, [self.law_definition(name) for name in names] or None)
 
     @property
     def n_cases(self) -> int:
@@ -389,8 +405,9 @@ def _system_parameter_names(kind: SystemKind | None) -> list[str]:
 
 def _laws_section(
     data: Mapping[str, Any], errors: _Errors, optional: bool = False
-) -> tuple[list[str], list[LawDefinition], bool]:
-    """Valid law names, their definitions, and whether every name given was valid.
+) -> tuple[list[str], list[LawDefinition], bool, dict[str, LawDefinition]]:
+    """Valid law names, their definitions, whether every name given was valid, and the
+    user laws of the ``[laws.<name>]`` tables (see :mod:`ncstab.studies.user_laws`).
 
     ``optional``: the system's interactions have laws of their own (a column,
     Ziegler's pendulum), so a study may leave ``[laws]`` out.
@@ -399,43 +416,68 @@ def _laws_section(
     if table is None:
         if "laws" not in data and not optional:
             errors.add("laws.names", f"missing: give [laws] names = [...]; the catalogue has: {', '.join(LAWS)}")
-        return [], [], optional and "laws" not in data
-    _check_keys(table, ("names",), "laws", errors, "[laws]")
+        return [], [], optional and "laws" not in data, {}
+    tables = {key: value for key, value in table.items() if key != "names" and isinstance(value, dict)}
+    _check_keys({k: v for k, v in table.items() if k not in tables}, ("names",), "laws", errors, "[laws]")
+    user_laws, invalid = user_laws_from_tables(tables, errors.add, set(_system_parameter_names(None)))
     names = table.get("names")
     if names is None:
         errors.add("laws.names", f"missing: give names = [...]; the catalogue has: {', '.join(LAWS)}")
-        return [], [], False
+        return [], [], False, user_laws
     if not isinstance(names, list):
         errors.add(
             "laws.names",
             f"expected an array of law names such as [\"mcnamara\"], got {_toml_type(names)}; "
             f"the catalogue has: {', '.join(LAWS)}",
         )
-        return [], [], False
+        return [], [], False, user_laws
     if not names:
         errors.add("laws.names", f"give at least one law; the catalogue has: {', '.join(LAWS)}")
-        return [], [], False
+        return [], [], False, user_laws
     valid: list[str] = []
     definitions: list[LawDefinition] = []
-    all_valid = True
+    all_valid = not invalid
     seen: set[str] = set()
+    listed: set[str] = set()
     for name in names:
         if not isinstance(name, str):
             errors.add("laws.names", f"expected law names (strings), got {_toml_type(name)} ({name!r})")
             all_valid = False
             continue
-        if name in seen:
-            errors.add("laws.names", f"law {name!r} is listed twice; list each law once")
-            continue
-        seen.add(name)
+        listed.add(name.split("+")[0].strip())
+        if name.split("+")[0].strip() in invalid:
+            continue  # its table's errors are reported
         try:
-            definitions.append(law_definition(name))
+            definition = law_definition(name, user_laws)
         except ValueError as error:
             errors.add("laws.names", str(error))
             all_valid = False
             continue
-        valid.append(name)
-    return valid, definitions, all_valid
+        if definition.name in seen:
+            errors.add("laws.names", f"law {name!r} is listed twice; list each law once")
+            continue
+        seen.add(definition.name)
+        definitions.append(definition)
+        valid.append(definition.name)
+    for name in tables:
+        if name not in listed:
+            errors.add(
+                f"laws.{name}",
+                f"user law {name!r} is defined but not listed in names: add it to names = [...] or remove [laws.{name}]",
+            )
+    return valid, definitions, all_valid, user_laws
+
+
+def _user_laws_need_a_deformable_normal(
+    system: SystemSpec, user_laws: Mapping[str, LawDefinition], errors: _Errors
+) -> None:
+    if system.normal == "rigid":
+        for name in user_laws:
+            errors.add(
+                f"laws.{name}",
+                "user laws are not available with normal = \"rigid\" (the pure-shear limit is derived for "
+                "the catalogue laws only); use normal = \"deformable\"",
+            )
 
 
 def _parameter_specs(
@@ -971,10 +1013,11 @@ def parse_study(text: str, path: str | None = None) -> Study:
     name, description = _study_section(data, errors)
     named = (data.get("system") or {}).get("name", "diamond") if isinstance(data.get("system"), dict) else "diamond"
     own_laws = isinstance(named, str) and named in SYSTEMS and SYSTEMS[named].own_laws
-    laws, definitions, all_laws_valid = _laws_section(data, errors, optional=own_laws)
+    laws, definitions, all_laws_valid, user_laws = _laws_section(data, errors, optional=own_laws)
     law_only = {p.name for d in (definitions if all_laws_valid else LAWS.values()) for p in d.parameters}
     law_only -= set(_system_parameter_names(None))
     system, kind, system_raw = _system_section(data, errors, law_only)
+    _user_laws_need_a_deformable_normal(system, user_laws, errors)
     if kind is not None:
         _check_law_kinds(errors, definitions, system)
     specs = _parameter_specs(definitions, all_laws_valid, kind, system)
@@ -1004,6 +1047,7 @@ def parse_study(text: str, path: str | None = None) -> Study:
         figures=figures,
         output=output,
         map=study_map,
+        user_laws=tuple(user_laws.values()),
     )
 
 
