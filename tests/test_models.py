@@ -379,3 +379,43 @@ def test_the_dataset_names_dofs_contacts_and_loads():
     assert z["load"].dims[-1] == "step" and "limit_point_load" in z
     assert list(z["spring"].values) == ["base", "middle"] and z["moment"].dims[-1] == "spring"
     assert z.attrs["load_kind"] == "dead" and z.attrs["force_unit"] == "k"
+
+
+def test_a_system_built_in_python_reaches_the_workers_of_a_dask_run(tmp_path):
+    """A Study around a SystemDefinition that no registry knows (a five-grain ring
+    built here) runs on a dask worker in another process and gives the in-process
+    archive (identical, ``created`` aside): the model travels as a value."""
+    import dataclasses
+
+    import xarray as xr
+
+    distributed = pytest.importorskip("dask.distributed")
+    from ncstab.studies import open_study, parse_study, run_study, run_study_chunked, write_dataset
+
+    shipped = system_definition("ring", (("grains", 5),))
+    mine = dataclasses.replace(shipped, name="my_ring", title="a ring built in Python")
+    text = """
+[study]
+name = "python_ring"
+[system]
+name = "ring"
+grains = 5
+[laws]
+names = ["mcnamara", "cundall_strack"]
+[parameters]
+gamma = [0.5, 1.5]
+[[loading]]
+hold = { F2 = 0.0, F3 = 0.0, F4 = 0.0, F5 = 0.0 }
+drive = { D1 = 0.05 }
+[options]
+max_step = 0.05
+"""
+    study = dataclasses.replace(parse_study(text), system=mine)
+    write_dataset(run_study(study), tmp_path / "in_process.nc")
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster:
+        run_study_chunked(study, tmp_path / "dask.nc", chunk_cases=2, scheduler=cluster.scheduler_address)
+    a, b = open_study(tmp_path / "in_process.nc"), open_study(tmp_path / "dask.nc")
+    for dataset in (a, b):
+        dataset.attrs.pop("created")
+    assert a.attrs["system"] == "my_ring"
+    xr.testing.assert_identical(a, b)

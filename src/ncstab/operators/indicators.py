@@ -24,6 +24,17 @@ __all__ = [
 ]
 
 
+def _on_finite(function, matrices: np.ndarray) -> np.ndarray:
+    """``function`` of the ``(..., n, n)`` matrices whose entries are all finite, NaN
+    for the others (padding after a path's end, a failed case): LAPACK is not asked
+    about NaN matrices."""
+    finite = np.isfinite(matrices).all(axis=(-2, -1))
+    out = np.full(matrices.shape[:-2], np.nan)
+    if finite.any():
+        out[finite] = function(matrices[finite])
+    return out
+
+
 def symmetric_part(stiffness: np.ndarray) -> np.ndarray:
     """K_sym = (K + K^T) / 2."""
     return 0.5 * (stiffness + np.swapaxes(stiffness, -1, -2))
@@ -39,7 +50,7 @@ def det_K(stiffness: np.ndarray) -> np.ndarray:
     stiffness = np.asarray(stiffness, dtype=float)
     if stiffness.shape[-1] == 2:  # closed form: exact and faster than LU
         return stiffness[..., 0, 0] * stiffness[..., 1, 1] - stiffness[..., 0, 1] * stiffness[..., 1, 0]
-    return np.linalg.det(stiffness)
+    return _on_finite(np.linalg.det, stiffness)
 
 
 def hill_eigenvalue(stiffness: np.ndarray) -> np.ndarray:
@@ -53,7 +64,7 @@ def hill_eigenvalue(stiffness: np.ndarray) -> np.ndarray:
         mean = 0.5 * (sym[..., 0, 0] + sym[..., 1, 1])
         radius = np.hypot(0.5 * (sym[..., 0, 0] - sym[..., 1, 1]), sym[..., 0, 1])
         return mean - radius
-    return np.linalg.eigvalsh(sym)[..., 0]
+    return _on_finite(lambda m: np.linalg.eigvalsh(m)[..., 0], sym)
 
 
 def second_order_work(stiffness: np.ndarray, direction: np.ndarray) -> np.ndarray:
@@ -76,13 +87,16 @@ def flutter_discriminant(stiffness: np.ndarray) -> np.ndarray:
     stiffness = np.asarray(stiffness, dtype=float)
     if stiffness.shape[-1] == 2:
         return (stiffness[..., 0, 0] - stiffness[..., 1, 1]) ** 2 + 4 * stiffness[..., 0, 1] * stiffness[..., 1, 0]
-    eig = np.linalg.eigvals(stiffness)
-    n = eig.shape[-1]
-    product = np.ones(eig.shape[:-1], dtype=complex)
-    for i in range(n):
-        for j in range(i + 1, n):
-            product = product * (eig[..., i] - eig[..., j]) ** 2
-    return product.real
+    def discriminant(matrices: np.ndarray) -> np.ndarray:
+        eig = np.linalg.eigvals(matrices)
+        n = eig.shape[-1]
+        product = np.ones(eig.shape[:-1], dtype=complex)
+        for i in range(n):
+            for j in range(i + 1, n):
+                product = product * (eig[..., i] - eig[..., j]) ** 2
+        return product.real
+
+    return _on_finite(discriminant, stiffness)
 
 
 def force_controlled_mask(force_controlled: Sequence[bool] | Sequence[int] | np.ndarray, n: int) -> np.ndarray:
@@ -125,7 +139,7 @@ def mixed_control_determinant(stiffness: np.ndarray, force_controlled: Sequence[
     if index.size == 0:
         return np.ones(stiffness.shape[:-2])
     sub = stiffness[..., index[:, None], index[None, :]]
-    return det_K(sub) if index.size == 2 else (sub[..., 0, 0] if index.size == 1 else np.linalg.det(sub))
+    return sub[..., 0, 0] if index.size == 1 else det_K(sub)
 
 
 def mixed_control_stiffness(stiffness: np.ndarray, force_controlled: Sequence[int] | np.ndarray) -> np.ndarray:

@@ -34,7 +34,7 @@ from ncstab.paths.programme import (
 )
 from ncstab.studies.expressions import ExpressionError, evaluate_expression, is_expression
 from ncstab.studies.user_laws import user_laws_from_tables
-from ncstab.systems import SYSTEMS, SystemKind
+from ncstab.systems import SYSTEMS, SystemDefinition, SystemKind
 
 __all__ = [
     "DEFAULT_FIGURES",
@@ -136,7 +136,11 @@ class Study:
     text
         The whole file text (kept in the archive as provenance).
     system
-        System, secondary-contact mode and normal mode.
+        System, secondary-contact mode and normal mode (a :class:`SystemSpec`),
+        or, for a study built in Python, any
+        :class:`~ncstab.systems.SystemDefinition` (then followed with
+        secondary contacts activated); it reaches the workers of a chunked or
+        dask run as a value.
     laws
         Law names (the ``law`` dimension), with modifiers.
     parameters
@@ -161,7 +165,7 @@ class Study:
     description: str
     path: str | None
     text: str
-    system: SystemSpec
+    system: "SystemSpec | SystemDefinition"
     laws: tuple[str, ...]
     parameters: dict[str, float | list[float]]
     programme: LoadingProgramme
