@@ -54,8 +54,17 @@ def _documented_changes(golden: xr.Dataset, computed: xr.Dataset) -> xr.Dataset:
     * the attribute ``system_settings`` states the system's structural
       settings (``reduction=symmetric``).
 
-    Only coordinates and attributes change: every variable's values are
-    compared as they are.
+    and, in the variables (issue 16, dynamic stability):
+
+    * the events ``bifurcation`` and ``divergence`` have their tables
+      (``bifurcation_s``...): never found on the reduced diamond, whose fused
+      kernel keeps the ten indicator columns of the seed's events;
+    * ``flutter`` is the growth rate max Re s of the linearised dynamics
+      I s^2 + K (grains of equal mass), not the discriminant of K: checked
+      here against an independent eigenvalue computation on the golden K, and
+      it is positive exactly where K has complex eigenvalues (the golden's
+      discriminant < 0) or a negative one;
+    * ``flutter_onset_frequency`` is added (NaN: no flutter onset in these studies).
     """
     names = computed["dof"].values
     changed = golden.assign_coords(
@@ -66,7 +75,32 @@ def _documented_changes(golden: xr.Dataset, computed: xr.Dataset) -> xr.Dataset:
     )
     changed["law"].attrs = dict(computed["law"].attrs)
     changed.attrs["system_settings"] = computed.attrs["system_settings"]
+    for name in computed.data_vars:
+        if name.startswith(("bifurcation_", "divergence_")) or name == "flutter_onset_frequency":
+            found = computed[name]
+            assert bool(np.all(found.isnull() | (found == -1))), f"{name} found on the reduced diamond"
+            changed[name] = found
+    changed["flutter"] = _checked_flutter(golden, computed)
     return changed
+
+
+def _checked_flutter(golden: xr.Dataset, computed: xr.Dataset) -> xr.DataArray:
+    """The computed ``flutter`` (max Re s of I s^2 + K), once checked against numpy's
+    eigenvalues of K and against the golden discriminant's sign (complex
+    eigenvalues of K: s off the imaginary axis).  s^2 = -lambda(K) is compared
+    (rtol 1e-10, atol 1e-13): near a zero eigenvalue of K the square root
+    amplifies rounding (ds = dlambda / 2 sqrt(lambda), 1e-9 at lambda ~ 1e-12)."""
+    K = computed["K"].values
+    finite = np.isfinite(K).all(axis=(-2, -1))
+    expected = np.full(K.shape[:-2], np.nan)
+    lam = np.linalg.eigvals(K[finite]).astype(complex)
+    expected[finite] = np.abs(np.sqrt(-lam).real).max(axis=-1)
+    new = computed["flutter"].values
+    np.testing.assert_allclose(new**2, expected**2, rtol=1e-10, atol=1e-13)
+    if golden["flutter"].shape == computed["flutter"].shape:  # (a known difference changes the steps)
+        complex_pair = golden["flutter"].values < -1e-12
+        assert np.all(new[complex_pair] > 0)
+    return computed["flutter"]
 
 
 def _without_volatile(dataset: xr.Dataset) -> xr.Dataset:

@@ -148,18 +148,20 @@ def test_ziegler_follower_load_on_the_straight_path():
     np.testing.assert_allclose(K, expected, rtol=0, atol=1e-14)
     np.testing.assert_allclose(ds["det_K"].isel(law=0).values[:n], 1.0, rtol=0, atol=1e-14)
     assert abs(float(ds["hill_loss_load"].item()) - 2.0) <= 1e-10
-    assert np.isnan(float(ds["limit_point_load"].item()))  # no divergence: det K never vanishes
+    for event in ("limit_point", "bifurcation", "divergence"):  # det K never vanishes
+        assert np.isnan(float(ds[f"{event}_load"].item()))
     np.testing.assert_array_equal(ds["u"].isel(law=0).values[:n], 0.0)  # the straight state
     assert str(ds["law"].item()) == "linear_spring" and str(ds["law_class"].item()) == "hyperelastic"
 
 
 def test_ziegler_dead_load_on_the_straight_path():
-    """K = [[2 - P, -1], [-1, 1 - P]]: det K = P^2 - 3P + 1, first zero (3 - sqrt 5)/2 (1e-10)."""
+    """K = [[2 - P, -1], [-1, 1 - P]]: det K = P^2 - 3P + 1, first zero (3 - sqrt 5)/2 (1e-10),
+    a simple bifurcation of the straight path."""
     ds = follow(SystemSpec("ziegler", load="dead"), None, [{"drive": {"P": 1.0}}]).to_dataset()
     n = int(ds["n_steps"].item())
     P = ds["load"].isel(law=0).values[:n]
     np.testing.assert_allclose(ds["det_K"].isel(law=0).values[:n], P**2 - 3 * P + 1, rtol=0, atol=1e-13)
-    assert abs(float(ds["limit_point_load"].item()) - (3 - np.sqrt(5)) / 2) <= 1e-10
+    assert abs(float(ds["bifurcation_load"].item()) - (3 - np.sqrt(5)) / 2) <= 1e-10
     K = ds["K"].isel(law=0).values[:n]
     np.testing.assert_allclose(K, np.swapaxes(K, -1, -2), rtol=0, atol=0)  # dead load: conservative
 
@@ -192,12 +194,17 @@ def test_column_stiffness_on_the_straight_path_is_the_hessian_of_its_potential(l
 
 @pytest.mark.parametrize("links", [2, 3, 4, 5, 6, 7, 8])
 def test_the_first_zero_of_det_K_of_the_column_is_henckys_load(links):
-    """(4C/a) sin^2(pi/2n) to 1e-10 (event_tol), the path straight through it (w = 0)."""
+    """(4C/a) sin^2(pi/2n) to 1e-10 (event_tol): a simple bifurcation point, not a limit
+    point (the load does not turn); with at_bifurcation = "continue" the path goes on
+    straight through it (|w| < 1e-12: here exactly 0)."""
     expected = 4 * np.sin(np.pi / (2 * links)) ** 2
     ds = follow(SystemSpec("column", links=links), None, [{"drive": {"P": expected + 0.3}}]).to_dataset()
     assert str(ds["status"].item()) == "finished"
-    assert abs(float(ds["limit_point_load"].item()) - expected) <= 1e-10
-    assert float(np.nanmax(np.abs(ds["u"].values))) == 0.0
+    assert abs(float(ds["bifurcation_load"].item()) - expected) <= 1e-10
+    assert np.isnan(float(ds["limit_point_load"].item()))
+    assert float(np.nanmax(np.abs(ds["u"].values))) < 1e-12
+    n = int(ds["n_steps"].item())
+    assert ds["load"].isel(law=0).values[n - 1] == pytest.approx(expected + 0.3, abs=1e-12)
 
 
 # --- every tangent three ways -------------------------------------------------------------------

@@ -96,8 +96,25 @@ def flutter_indicator(
     0 (up to rounding, ~1e-15) over a whole range of loads and then grows like
     the square root of the distance to the onset: events are located on
     :func:`flutter_onset_indicator` and :func:`divergence_indicator`, not on it.
+
+    Undamped cases take a shortcut with the same roots: s = +-sqrt(mu) with mu
+    the n eigenvalues of -M^-1 K (closed form for n = 2), so max Re s is the
+    largest |Re sqrt(mu)| -- an n x n problem instead of the 2n x 2n companion.
     """
-    return dynamic_spectrum(mass, damping, stiffness).real.max(axis=-1)
+    mass, damping, stiffness = as_dynamic_matrices(mass, damping, stiffness)
+    undamped = _undamped(damping, mass.shape[:-2])
+    if not undamped.all():
+        return dynamic_spectrum(mass, damping, stiffness).real.max(axis=-1)
+    product, valid = solve_mass(mass, stiffness)
+    if mass.shape[-1] == 2:
+        trace = product[..., 0, 0] + product[..., 1, 1]
+        determinant = product[..., 0, 0] * product[..., 1, 1] - product[..., 0, 1] * product[..., 1, 0]
+        root = np.sqrt((trace * trace - 4 * determinant).astype(complex))
+        mu = -np.stack([(trace + root) / 2, (trace - root) / 2], axis=-1)
+    else:
+        mu = -np.linalg.eigvals(product).astype(complex)
+    growth = np.abs(np.sqrt(mu).real).max(axis=-1)
+    return np.where(valid, growth, np.nan)
 
 
 def divergence_indicator(

@@ -20,14 +20,14 @@ from ncstab.paths.grid import CaseRange, ParameterGrid
 from ncstab.paths.model import CaseBatch
 from ncstab.paths.model_batch import ModelBatch
 from ncstab.paths.options import PathOptions, SystemSpec
-from ncstab.paths.programme import LoadingProgramme, parse_programme
+from ncstab.paths.programme import BRANCH_DIMENSION, LoadingProgramme, parse_programme
 from ncstab.paths.result import PathResult
 from ncstab.paths.rigid_model import RigidCaseBatch
 from ncstab.paths.stepper import follow_cases
 from ncstab.systems.definition import SystemDefinition
 from ncstab.systems.diamond import DiamondChain
 
-__all__ = ["CaseRange", "Model", "ParameterGrid", "case_batch", "follow", "resolve_model"]
+__all__ = ["BRANCHES", "CaseRange", "Model", "ParameterGrid", "case_batch", "follow", "resolve_model", "with_branches"]
 
 
 
@@ -178,6 +178,19 @@ def _values_of(specs: Sequence[Any], values: Mapping[str, np.ndarray], size: int
     return out
 
 
+#: The branches a stage with ``at_bifurcation = "branches"`` follows: the path it was
+#: on (0) and the bifurcating branch either way (+1, -1).
+BRANCHES = [0.0, 1.0, -1.0]
+
+
+def with_branches(programme: LoadingProgramme, parameters: Mapping[str, Any]) -> dict[str, Any]:
+    """``parameters`` with the ``branch`` sweep dimension first where a stage follows
+    every branch of its bifurcation (and the parameters do not sweep it already)."""
+    if not programme.follows_branches or BRANCH_DIMENSION in parameters:
+        return dict(parameters)
+    return {BRANCH_DIMENSION: list(BRANCHES), **parameters}
+
+
 def case_batch(
     law: Any,
     system: SystemSpec | str | SystemDefinition | Model,
@@ -283,8 +296,8 @@ def follow(
     definition = model.definition
     if not isinstance(programme, LoadingProgramme):
         programme = parse_programme(programme, definition.dofs, definition.forces, definition.load_parameter)
-    grid = ParameterGrid.from_mapping(parameters or {})
-    known = model.known_parameters()
+    grid = ParameterGrid.from_mapping(with_branches(programme, parameters or {}))
+    known = model.known_parameters() | ({BRANCH_DIMENSION} if programme.follows_branches else set())
     if model.normal == "rigid":
         meaningless = sorted({"gamma", "kappa"} & set(grid.names))
         if meaningless:

@@ -100,15 +100,19 @@ def locate_crossings(
             b, s_ = batch.take(pick), stage.take(pick)
             yy = evaluate_dense(y_start[pick], coefficients[:, slot_of_row[pick]], lengths / h[pick])
             columns = pair_column[index]
-            turning = bool((columns == columns_of.turning).any())  # the only column needing the tangent
-            stiffness_columns = bool((columns < STIFFNESS_COLUMNS).any())
+            # The turning point and the branch test need the tangent; the columns built on K
+            # (and the dynamic divergence) need K; gaps, overlaps, cycle ends and targets neither.
+            turning = bool(np.isin(columns, [columns_of.turning, columns_of.bifurcation]).any())
+            stiffness_columns = bool(((columns < STIFFNESS_COLUMNS) | (columns == columns_of.divergence)).any())
             if b.has_total_form:
                 yy, _, evaluation = project_finite(b, s_, yy, np.zeros(pick.size), layout, options)
-            else:  # gaps, overlap, cycle end and target need no forces nor K
+            else:
                 evaluation = evaluate_at(b, s_, yy, layout, geometry_only=not (turning or stiffness_columns))
             lam = yy[:, layout.lam]
-            dlam = tangent_at(evaluation, s_, lam).dlam if turning else np.full(pick.size, np.nan)
-            values = indicator_values(evaluation, s_, lam, dlam, stiffness_columns, columns_of)
+            tangent = tangent_at(evaluation, s_, lam) if turning else None
+            dlam = tangent.dlam if turning else np.full(pick.size, np.nan)
+            branch = tangent.branch if turning else None
+            values = indicator_values(evaluation, s_, lam, dlam, stiffness_columns, columns_of, branch)
             return values[np.arange(pick.size), columns], yy
 
         root, lo, hi, _, state = locate_sign_changes(

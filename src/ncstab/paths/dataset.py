@@ -19,7 +19,13 @@ import ncstab
 from ncstab.operators.indicators import det_K, flutter_discriminant, hill_eigenvalue, skew_part, symmetric_part
 from ncstab.paths.model_batch import family_fields
 from ncstab.paths.programme import EVENTS
-from ncstab.paths.variables import CASE_DIMENSION, EVENT_FIELDS, VARIABLES
+from ncstab.paths.variables import (
+    CASE_DIMENSION,
+    EVENT_FIELDS,
+    FLUTTER_FREQUENCY,
+    FLUTTER_WITHOUT_INERTIA,
+    VARIABLES,
+)
 
 if TYPE_CHECKING:  # pragma: no cover
     import xarray
@@ -102,7 +108,7 @@ def path_dataset(result: "PathResult", directions: int | None = None) -> "xarray
         "det_K": (step_dims, det_K(K)),
         "hill": (step_dims, hill_eigenvalue(K)),
         "d2W": (step_dims, d2w),
-        "flutter": (step_dims, flutter_discriminant(K)),
+        "flutter": (step_dims, _flutter(result, stacked("u"), K)),
         "mixed_control": (step_dims, mixed),
         "n_steps": (sweep_dims, np.stack([r.n_steps for r in result.results]).reshape(shape).astype(np.int32)),
         "status": (sweep_dims, result.status.astype(str)),
@@ -119,6 +125,8 @@ def path_dataset(result: "PathResult", directions: int | None = None) -> "xarray
     has_load = result.model.definition.load is not None
     if has_load:
         data["load"] = (step_dims, stacked("load"))
+    if "branch_index" in result.results[0].steps:
+        data["branch_index"] = (step_dims, stacked("branch_index").astype(np.int32))
     if directions is not None:
         from ncstab.operators.directional_work import directional_second_order_work, unstable_cone
 
@@ -147,6 +155,8 @@ def path_dataset(result: "PathResult", directions: int | None = None) -> "xarray
         data["cycle_force_gap"] = ([*sweep_dims, "cycle", "dof"], cycle_array("force_gap"))
         data["cycle_T_drift"] = ([*sweep_dims, "cycle", *drift_dim], drift)
     overrides = _system_descriptions(result)
+    if result.model.definition.mass is None:
+        overrides["flutter"] = FLUTTER_WITHOUT_INERTIA
     rigid = result.model.normal == "rigid"
     for name, (dims, values) in list(data.items()):
         units, long_name, description = overrides.get(name, VARIABLES[name])
@@ -176,7 +186,59 @@ def path_dataset(result: "PathResult", directions: int | None = None) -> "xarray
                 values,
                 {"units": units, "long_name": long_name.format(event=event), "description": description.format(event=event)},
             )
+    if result.model.definition.mass is not None:
+        frequency = _dynamic_matrices(
+            result,
+            np.stack([r.events["flutter_onset"]["u"] for r in result.results]).reshape(shape + (n,)),
+            np.stack([r.events["flutter_onset"]["K"] for r in result.results]).reshape(shape + (n, n)),
+            critical=True,
+        )
+        units, long_name, description = FLUTTER_FREQUENCY
+        data["flutter_onset_frequency"] = (sweep_dims, frequency, {"units": units, "long_name": long_name, "description": description})
     return xr.Dataset(data, coords=_coordinates(result, length, directions, n_cycles), attrs=_attributes(result))
+
+
+def _case_parameters(result: "PathResult", extra: tuple[int, ...]) -> tuple[np.ndarray, ...]:
+    """The system's parameters per case, broadcast over the trailing dims ``extra``
+    and flattened: one value per (law, case, *extra)."""
+    values = result.grid.case_values()
+    size = result.grid.size
+    out = []
+    for spec in result.model.definition.parameters:
+        per_case = np.asarray(values.get(spec.name, np.full(size, spec.default)), dtype=float)
+        per_case = np.broadcast_to(per_case, (len(result.laws), size))
+        out.append(np.broadcast_to(per_case.reshape(per_case.shape + (1,) * len(extra)), per_case.shape + extra).ravel())
+    return tuple(out)
+
+
+def _dynamic_matrices(result: "PathResult", u: np.ndarray, K: np.ndarray, critical: bool = False) -> np.ndarray:
+    """max Re s (or, ``critical``, the critical frequency) of M(u) s^2 + C s + K at
+    states ``u`` ``(law, *sweep, *extra, n)`` with their K, NaN where K is."""
+    from ncstab.operators.dynamics import critical_frequency, flutter_indicator
+    from ncstab.systems.compile import compile_system
+
+    compiled = compile_system(result.model.definition)
+    n = u.shape[-1]
+    extra = u.shape[len(result.shape):-1]
+    flat_u, flat_K = u.reshape(-1, n), K.reshape(-1, n, n)
+    finite = np.isfinite(flat_K).all(axis=(-2, -1)) & np.isfinite(flat_u).all(axis=-1)
+    out = np.full(flat_u.shape[0], np.nan)
+    if finite.any():
+        parameters = tuple(p[finite] for p in _case_parameters(result, extra))
+        mass = compiled.mass(flat_u[finite], parameters)
+        damping = compiled.damping(flat_u[finite], parameters)
+        function = critical_frequency if critical else flutter_indicator
+        with np.errstate(invalid="ignore"):
+            out[finite] = function(mass, damping, flat_K[finite])
+    return out.reshape(u.shape[:-1])
+
+
+def _flutter(result: "PathResult", u: np.ndarray, K: np.ndarray) -> np.ndarray:
+    """The ``flutter`` variable: max Re s of the system's dynamics, or the discriminant
+    of K for a system without inertia."""
+    if result.model.definition.mass is None:
+        return flutter_discriminant(K)
+    return _dynamic_matrices(result, u, K)
 
 
 def _coordinates(result: "PathResult", length: int, directions: int | None, n_cycles: int) -> dict:
@@ -263,6 +325,7 @@ def parameter_attributes(name: str, result: "PathResult | None" = None) -> dict[
         "alpha0": ("rad", "initial orientation alpha0", ALPHA0_SPEC.description),
         "kappa": ("1", "secondary contact stiffness ratio kappa", "stiffness of the secondary-contact springs / k_n"),
         CASE_DIMENSION: ("1", "case index", "flat index of the case in the whole sweep (C order over the swept parameters)"),
+        "branch": ("1", "branch followed at the bifurcation", "0: the path followed through the stage's first simple bifurcation point; +1, -1: the bifurcating branch, either way (at_bifurcation = \"branches\")"),
     }
     if result is not None:
         for spec in result.model.definition.parameters:

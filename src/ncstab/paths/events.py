@@ -63,10 +63,15 @@ class IndicatorLayout:
         Number of gaps of the system.
     normal_contacts
         Number of normal contacts that can open (no_tension laws).
+    general
+        Whether the ``divergence`` and ``bifurcation`` columns follow the normal
+        contacts (every system followed as a general model; the seed's reduced
+        diamond keeps the ten columns of its fused kernel).
     """
 
     gaps: int
     normal_contacts: int
+    general: bool = False
 
     @property
     def events(self) -> tuple[str, ...]:
@@ -76,6 +81,7 @@ class IndicatorLayout:
             + ("secondary_contact",) * self.gaps
             + ("turning_point",)
             + ("normal_contact",) * self.normal_contacts
+            + (("divergence", "bifurcation") if self.general else ())
             + ("cycle_end", "stage_target")
         )
 
@@ -85,7 +91,7 @@ class IndicatorLayout:
         gap g is bit 2**g, normal contact j bit 2**(gaps + j)."""
         gaps = tuple(1 << g for g in range(self.gaps))
         normals = tuple(1 << (self.gaps + j) for j in range(self.normal_contacts))
-        return (0, 0, 0, 0) + gaps + (0,) + normals + (0, 0)
+        return (0, 0, 0, 0) + gaps + (0,) + normals + ((0, 0) if self.general else ()) + (0, 0)
 
     @property
     def size(self) -> int:
@@ -105,6 +111,16 @@ class IndicatorLayout:
     def turning(self) -> int:
         """Column of dlambda/ds (the only one needing the path tangent)."""
         return STIFFNESS_COLUMNS + self.gaps
+
+    @property
+    def bifurcation(self) -> int | None:
+        """Column of the branch test (``None`` for the reduced diamond's layout)."""
+        return self.size - 3 if self.general else None
+
+    @property
+    def divergence(self) -> int | None:
+        """Column of the dynamic divergence test (``None`` for the reduced diamond's layout)."""
+        return self.size - 4 if self.general else None
 
     @property
     def gap_columns(self) -> slice:
@@ -136,7 +152,7 @@ CYCLE_COLUMN = DIAMOND_COLUMNS.cycle
 TURNING_COLUMN = DIAMOND_COLUMNS.turning
 #: Column of the diamond's stage-target indicator.
 TARGET_COLUMN = DIAMOND_COLUMNS.target
-assert set(INDICATOR_EVENTS) - {"normal_contact", "cycle_end", "stage_target"} == set(EVENTS)
+assert set(IndicatorLayout(1, 1, True).events) - {"normal_contact", "cycle_end", "stage_target"} == set(EVENTS)
 
 
 def _signed_zero(values: np.ndarray, state: np.ndarray, bits: tuple[int, ...]) -> np.ndarray:
@@ -155,6 +171,7 @@ def indicator_values(
     dlam: np.ndarray,
     stiffness_columns: bool = True,
     layout: IndicatorLayout = DIAMOND_COLUMNS,
+    branch: np.ndarray | None = None,
 ) -> np.ndarray:
     """All indicators at a batch of states, ``(B, layout.size)``.
 
@@ -172,6 +189,9 @@ def indicator_values(
         (event location of a gap or a target); the other columns are the same.
     layout
         The system's columns.
+    branch
+        The branch test of the path tangent (``PathTangent.branch``), for a
+        general layout's ``bifurcation`` column (NaN where not given).
     """
     stiffness = evaluation.stiffness
     state = stage.secondary_state
@@ -188,29 +208,53 @@ def indicator_values(
         # rest) has a flutter discriminant of +-1e-31 that must not be an event.
         return np.where(np.abs(value) <= SIGN_NOISE * size, 0.0, value)
 
+    nothing = np.full(lam.shape, np.nan)
+    dynamic = nothing
     if stiffness_columns:
         control = control_matrix(evaluation.du_dv, evaluation.dF_dv, stage.force_controlled)
         with np.errstate(invalid="ignore"):
             scale = np.nanmax(np.abs(np.concatenate([stiffness, control], axis=-1)), axis=(-2, -1))
         scale = np.where(np.isfinite(scale) & (scale > 0), scale, 1.0)
+        control_determinant = significant(det_K(control), scale**2)
+        if layout.general and evaluation.mass is not None:
+            # M s^2 + C s + K: the onset of flutter (a pair through the imaginary
+            # axis) and divergence (a real root through 0 under the stage's control).
+            flutter = _flutter_onset(evaluation.mass, evaluation.damping, stiffness)
+            dynamic = control_determinant
+        else:
+            flutter = significant(flutter_discriminant(stiffness), scale**2)
         stiffness_values = [
             significant(det_K(stiffness), scale**2),
             significant(hill_eigenvalue(stiffness), scale),
-            significant(det_K(control), scale**2),
-            significant(flutter_discriminant(stiffness), scale**2),
+            control_determinant,
+            flutter,
         ]
     else:
-        stiffness_values = [np.full(lam.shape, np.nan)] * 4
+        stiffness_values = [nothing] * 4
+    general = []
+    if layout.general:
+        general = [dynamic, nothing if branch is None else branch]
     return np.column_stack(
         [
             *stiffness_values,
             gaps,
             dlam,
             overlap,
+            *general,
             cycle_end,
             target,
         ]
     )
+
+
+def _flutter_onset(mass: np.ndarray, damping: np.ndarray | None, stiffness: np.ndarray) -> np.ndarray:
+    """The flutter-onset test of M s^2 + C s + K (:func:`ncstab.operators.flutter_onset_indicator`),
+    with values within rounding of zero taken as zero (no sign)."""
+    from ncstab.operators.dynamics import flutter_onset_indicator
+
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        values = flutter_onset_indicator(mass, damping, stiffness)
+    return values
 
 
 def locate_sign_changes(

@@ -63,6 +63,8 @@ class Evaluation:
         dF/dP ``(B, n)`` (= -Q_ext, the load per unit of the load parameter P
         with its sign in F = R(u, P)) for a system with a load parameter, else
         ``None``.
+    mass, damping
+        M(u) and C ``(B, n, n)`` of a system with inertia, else ``None``.
     interactions
         Per interaction family (in the system's order), its variables
         ``(B, m, k)`` and stored forces ``(B, m, k_f)``, where the batch gives
@@ -83,6 +85,8 @@ class Evaluation:
     internal_gradient: np.ndarray | None = None
     dF_dload: np.ndarray | None = None
     interactions: tuple[tuple[np.ndarray, np.ndarray], ...] | None = None
+    mass: np.ndarray | None = None
+    damping: np.ndarray | None = None
 
     def take(self, index: np.ndarray) -> "Evaluation":
         return Evaluation(*(_take_or_none(getattr(self, f.name), index) for f in fields(self)))

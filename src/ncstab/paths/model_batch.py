@@ -156,7 +156,9 @@ class ModelBatch:
 
     @property
     def columns(self) -> IndicatorLayout:
-        return IndicatorLayout(gaps=len(self.definition.gaps), normal_contacts=len(self._no_tension_members))
+        return IndicatorLayout(
+            gaps=len(self.definition.gaps), normal_contacts=len(self._no_tension_members), general=True
+        )
 
     @property
     def gap_bits(self) -> int:
@@ -352,6 +354,8 @@ class ModelBatch:
             internal_gradient=np.concatenate(gradients, axis=1) if gradients else None,
             dF_dload=dF_dload,
             interactions=tuple(interactions),
+            mass=compiled.mass(u, parameters),
+            damping=compiled.damping(u, parameters),
         )
 
     def _law_values(

@@ -19,6 +19,8 @@ from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
 __all__ = [
+    "AT_BIFURCATION",
+    "BRANCH_DIMENSION",
     "EVENTS",
     "CURRENT",
     "ProgrammeError",
@@ -36,10 +38,17 @@ EVENTS = (
     "flutter_onset",
     "secondary_contact",
     "turning_point",
+    "bifurcation",
+    "divergence",
 )
 
 #: Held value meaning "the value the quantity has when the stage starts".
 CURRENT = "current"
+
+#: What a stage does at a simple bifurcation point (``Stage.at_bifurcation``).
+AT_BIFURCATION = ("continue", "switch", "branches")
+#: The sweep dimension of the branches of a stage with ``at_bifurcation = "branches"``.
+BRANCH_DIMENSION = "branch"
 
 #: Names that are load parameters of some system (for error messages on the others).
 LOAD_PARAMETER_NAMES = ("P",)
@@ -79,11 +88,21 @@ class Stage:
         ``{"D_top": 0.4, "D_bottom": 0.4}`` (proportionally) or ``{"P": 3.0}``.
     stop_at
         Events that end the stage (and the case) when located.
+    at_bifurcation
+        What the path does at a located simple bifurcation point:
+        ``"continue"`` (default) goes on along the branch it was on;
+        ``"switch"`` leaves along the bifurcating branch (in ``direction``);
+        ``"branches"`` follows both: the study gets a ``branch`` sweep
+        dimension (0: continued, +1 and -1: the bifurcating branch either way).
+    direction
+        +1 or -1: which way along the bifurcating branch (``"switch"``).
     """
 
     hold: Mapping[str, Value] = field(default_factory=dict)
     drive: Mapping[str, Value] = field(default_factory=dict)
     stop_at: tuple[str, ...] = ()
+    at_bifurcation: str = "continue"
+    direction: int = 1
 
     @property
     def drives(self) -> tuple[tuple[str, Value], ...]:
@@ -133,6 +152,11 @@ class LoadingProgramme:
 
     def __len__(self) -> int:
         return len(self.stages)
+
+    @property
+    def follows_branches(self) -> bool:
+        """Whether a stage follows every branch of its bifurcation (a ``branch`` dimension)."""
+        return any(getattr(stage, "at_bifurcation", "continue") == "branches" for stage in self.stages)
 
     def parameter_references(self) -> set[str]:
         """Names of parameters that held or driven values refer to."""
@@ -217,7 +241,29 @@ def _parse_linear(
             )
     hold_values = {k: _check_value(number, f"hold.{k}", v, True) for k, v in hold.items()}
     drive_values = {k: _check_value(number, f"drive.{k}", v, False) for k, v in drive.items()}
-    return Stage(hold_values, drive_values, _check_stop_at(number, raw.get("stop_at")))
+    at_bifurcation, direction = _check_at_bifurcation(number, raw.get("at_bifurcation", "continue"))
+    return Stage(hold_values, drive_values, _check_stop_at(number, raw.get("stop_at")), at_bifurcation, direction)
+
+
+def _check_at_bifurcation(stage: int, value: Any) -> tuple[str, int]:
+    """``"continue"``, ``"switch"``, ``"branches"`` or ``{switch = true, direction = +-1}``."""
+    allowed = "\"continue\", \"switch\", \"branches\" or a table { switch = true, direction = 1 or -1 }"
+    if isinstance(value, str):
+        if value not in AT_BIFURCATION:
+            raise ProgrammeError(stage, "at_bifurcation", f"{value!r} is not allowed; allowed: {allowed}")
+        return value, 1
+    if isinstance(value, Mapping):
+        unknown = set(value) - {"switch", "direction"}
+        if unknown:
+            raise ProgrammeError(stage, f"at_bifurcation.{sorted(unknown)[0]}", f"unknown key; allowed: {allowed}")
+        switch = value.get("switch", True)
+        if not isinstance(switch, bool):
+            raise ProgrammeError(stage, "at_bifurcation.switch", f"expected true or false, got {switch!r}")
+        direction = value.get("direction", 1)
+        if isinstance(direction, bool) or direction not in (1, -1):
+            raise ProgrammeError(stage, "at_bifurcation.direction", f"expected 1 or -1, got {direction!r}")
+        return ("switch" if switch else "continue"), int(direction)
+    raise ProgrammeError(stage, "at_bifurcation", f"expected {allowed}, got {value!r}")
 
 
 def _parse_cycle(number: int, raw: Mapping[str, Any], dofs: Sequence[str]) -> CycleStage:
@@ -298,7 +344,12 @@ def parse_programme(
     parsed: list[Stage | CycleStage] = []
     for number, raw in enumerate(stages, start=1):
         if isinstance(raw, Stage):
-            raw = {"hold": dict(raw.hold), "drive": dict(raw.drive), "stop_at": list(raw.stop_at)}
+            raw = {
+                "hold": dict(raw.hold), "drive": dict(raw.drive), "stop_at": list(raw.stop_at),
+                "at_bifurcation": (
+                    {"switch": True, "direction": raw.direction} if raw.at_bifurcation == "switch" else raw.at_bifurcation
+                ),
+            }
         elif isinstance(raw, CycleStage):
             raw = {
                 "cycle": {
@@ -312,10 +363,10 @@ def parse_programme(
         if "cycle" in raw:
             parsed.append(_parse_cycle(number, raw, dofs))
             continue
-        unknown = set(raw) - {"hold", "drive", "stop_at"}
+        unknown = set(raw) - {"hold", "drive", "stop_at", "at_bifurcation"}
         if unknown:
             raise ProgrammeError(
-                number, sorted(unknown)[0], "unknown key; a stage takes hold, drive, stop_at (or cycle)"
+                number, sorted(unknown)[0], "unknown key; a stage takes hold, drive, stop_at, at_bifurcation (or cycle)"
             )
         parsed.append(_parse_linear(number, raw, dofs, forces, load))
     return LoadingProgramme(tuple(parsed))

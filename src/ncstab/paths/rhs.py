@@ -59,13 +59,18 @@ class Auxiliary:
 
     def take(self, index: np.ndarray) -> "Auxiliary":
         t = self.tangent
-        tangent = PathTangent(t.dv[index], t.du[index], t.dF[index], t.dlam[index], t.det_m[index])
+        tangent = PathTangent(
+            t.dv[index], t.du[index], t.dF[index], t.dlam[index], t.det_m[index],
+            None if t.branch is None else t.branch[index], None if t.flipped is None else t.flipped[index],
+        )
         return Auxiliary(self.evaluation.take(index), tangent)
 
     def put(self, index: np.ndarray, other: "Auxiliary") -> None:
         self.evaluation.put(index, other.evaluation)
-        for name in ("dv", "du", "dF", "dlam", "det_m"):
-            getattr(self.tangent, name)[index] = getattr(other.tangent, name)
+        for name in ("dv", "du", "dF", "dlam", "det_m", "branch", "flipped"):
+            mine = getattr(self.tangent, name)
+            if mine is not None:
+                mine[index] = getattr(other.tangent, name)
 
 
 def evaluate_at(batch: Any, stage: StageArrays, y: np.ndarray, layout: StateLayout, geometry_only: bool = False) -> Evaluation:

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ncstab.paths.programme import CURRENT, CycleStage, Stage
+from ncstab.paths.programme import BRANCH_DIMENSION, CURRENT, CycleStage, Stage
 from ncstab.paths.rhs import evaluate_at, state_derivative, tangent_at
 from ncstab.paths.integrator import initial_step_size
 from ncstab.paths.tangent_field import StageArrays
@@ -149,6 +149,10 @@ def _linear_stage(
             arrays.load_offset[:], arrays.load_slope[:] = driven_line(load_name)
         elif controls.get(load_name, CURRENT) != CURRENT:
             bad |= _held_away(stepper, k, load_name, controls[load_name], index, current[load_name], reasons)
+    if stage.at_bifurcation == "switch":
+        arrays.switch[:] = stage.direction
+    elif stage.at_bifurcation == "branches":
+        arrays.switch[:] = np.rint(resolve(stepper, BRANCH_DIMENSION, index)).astype(int)
     if single:
         ((driven_name, _),) = drives.items()
         start = current[driven_name]

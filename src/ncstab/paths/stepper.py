@@ -34,7 +34,7 @@ from ncstab.paths.options import AUTO, PathOptions
 from ncstab.paths.programme import LoadingProgramme
 from ncstab.paths.projection import advance
 from ncstab.paths.recorder import Recorder
-from ncstab.paths.rhs import Auxiliary, StateLayout, state_derivative
+from ncstab.paths.rhs import Auxiliary, StateLayout, evaluate_at, state_derivative
 from ncstab.paths.status import FINISHED, RUNNING, failed, stopped
 from ncstab.paths.tangent_field import StageArrays
 
@@ -46,7 +46,9 @@ __all__ = ["BatchStepper", "follow_cases"]
 
 def indicators_at(batch: Any, stage: StageArrays, y: np.ndarray, aux: Auxiliary, layout: StateLayout) -> np.ndarray:
     """Every indicator column of the batch at the states ``y`` (with ``aux`` there)."""
-    return indicator_values(aux.evaluation, stage, y[:, layout.lam], aux.dlam, layout=batch.columns)
+    return indicator_values(
+        aux.evaluation, stage, y[:, layout.lam], aux.dlam, layout=batch.columns, branch=aux.tangent.branch
+    )
 
 
 @dataclass
@@ -169,6 +171,9 @@ class BatchStepper:
         self.events = empty_events(size, n, self.interaction_shapes())
         self.event_column, self.stop_table, self.break_columns = event_tables(programme, secondary_contacts, self.columns)
         self.turns = CycleTurns(programme, size, n, batch.interaction_shapes.get("T", ()))
+        #: Per case: 0 on the path followed from the start, +-1 once it has left along a
+        #: bifurcating branch that way (stored with every state of a general model).
+        self.branch_index = np.zeros(size, dtype=int)
         self.compiled = _compiled_stepper(batch, programme, options, secondary_contacts)
 
     @property
@@ -229,6 +234,8 @@ class BatchStepper:
         fields.update(internal=y[:, self.layout.internal], work=y[:, self.layout.work], F=ev.forces)
         fields.update(self.batch.record_interactions(ev))
         fields.update(K=ev.stiffness, du=aux.du, dlam=aux.dlam)
+        if self.columns.general:
+            fields["branch_index"] = self.branch_index[index]
         self.recorder.add(index, **fields)
 
     def record_fields(self) -> dict[str, tuple[tuple[int, ...], np.dtype]]:
@@ -240,7 +247,10 @@ class BatchStepper:
         shapes.update(internal=(self.layout.n_internal,), work=(), F=(n,))
         shapes.update(self.batch.interaction_shapes)
         shapes.update(K=(n, n), du=(n,), dlam=())
-        return {name: (shape, np.dtype(int) if name == "stage" else floating) for name, shape in shapes.items()}
+        if self.columns.general:
+            shapes["branch_index"] = ()
+        integers = ("stage", "branch_index")
+        return {name: (shape, np.dtype(int) if name in integers else floating) for name, shape in shapes.items()}
 
     # --- one pass of the loop --------------------------------------------------------------------
 
@@ -351,6 +361,7 @@ class BatchStepper:
             steps.y_new, steps.h, steps.dop853_stages, self.layout, self.options,
         )
         self.located[steps.cases] += crossings.located
+        self._not_a_limit_point(crossings, steps.h)
         is_cut, cut_column, reach = self._cut_points(steps, change, crossings.sigma)
         store_first_events(
             self.events, self.event_column, steps.cases, crossings, reach + self.options.event_tol,
@@ -362,6 +373,23 @@ class BatchStepper:
             self._move_to_cut_points(steps, crossings, cut_rows, cut_column, indicators)
         self._commit(steps, reach, indicators)
         self._end_stages(steps.cases, is_cut, cut_column, indicators)
+
+    def _not_a_limit_point(self, crossings: Any, h: np.ndarray) -> None:
+        """A zero of det K where the branch test also changes sign is a simple bifurcation
+        point, not a limit point: its det K crossing is dropped (in ``crossings``).
+
+        The two roots are located independently to event_tol; they count as one
+        point within 1e-6 of the step (a limit point that close to a
+        bifurcation is not generic).
+        """
+        column = self.columns.bifurcation
+        if column is None:
+            return
+        branch = crossings.sigma[:, column]
+        for limit in self.event_column["limit_point"]:
+            with np.errstate(invalid="ignore"):
+                same = np.isfinite(branch) & (np.abs(crossings.sigma[:, limit] - branch) <= 1e-6 * h)
+            crossings.sigma[same, limit] = np.inf
 
     def _cut_points(
         self, steps: AcceptedSteps, change: np.ndarray, sigma: np.ndarray
@@ -375,6 +403,9 @@ class BatchStepper:
         """
         stops = self.stop_table[self.stage_index[steps.cases]]
         cutting = change & (stops | self.break_columns[None, :])
+        if self.columns.bifurcation is not None:  # a pending branch switch cuts the step there
+            pending = (steps.stage.switch != 0) & ~steps.stage.switched
+            cutting[:, self.columns.bifurcation] |= change[:, self.columns.bifurcation] & pending
         cutting[:, self.columns.target] = change[:, self.columns.target]
         cutting[:, self.columns.cycle] = change[:, self.columns.cycle]
         cut_sigma = np.where(cutting, sigma, np.inf)
@@ -401,6 +432,10 @@ class BatchStepper:
         closing = cut_rows[self.break_columns[cut_column[cut_rows]]]
         if closing.size:
             self._switch_contacts_at(steps, closing, cut_column)
+        if self.columns.bifurcation is not None:
+            leaving = cut_rows[(cut_column[cut_rows] == self.columns.bifurcation) & (steps.stage.switch[cut_rows] != 0)]
+            if leaving.size:
+                self._switch_branches_at(steps, leaving)
         self._close_turns(steps, cut_rows, cut_column)
         batch, stage = steps.batch.take(cut_rows), steps.stage.take(cut_rows)
         dy_cut, aux_cut = state_derivative(batch, stage, steps.y_new[cut_rows], self.layout)
@@ -433,6 +468,29 @@ class BatchStepper:
         self.stages.orientation[steps.cases[closing[flip]]] *= -1
         # The motion continues from the switch: no reference across it.
         steps.stage.reference[closing] = np.nan
+
+    def _switch_branches_at(self, steps: AcceptedSteps, rows: np.ndarray) -> None:
+        """Rows ``rows`` are cut at a simple bifurcation point with a switch pending: they
+        leave along the bifurcating branch (:func:`ncstab.paths.branch_switching.switch_branch`),
+        the motion there becoming the reference the next tangents continue."""
+        from ncstab.paths.branch_switching import switch_branch
+
+        batch, stage = steps.batch.take(rows), steps.stage.take(rows)
+        incoming = np.concatenate([steps.aux.dv[rows], steps.aux.dlam[rows, None]], axis=-1)
+        sense = stage.switch.astype(float)
+        moved, direction = switch_branch(batch, stage, steps.y_new[rows], incoming, sense, self.layout, self.options)
+        steps.y_new[rows] = moved
+        evaluation = evaluate_at(batch, stage, moved, self.layout)
+        dv, dlam = direction[:, :-1], direction[:, -1]
+        du = np.einsum("bij,bj->bi", evaluation.du_dv, dv)
+        dF = np.einsum("bij,bj->bi", evaluation.dF_dv, dv)
+        if evaluation.dF_dload is not None:
+            dF = dF + evaluation.dF_dload * (stage.load_slope * dlam)[:, None]
+        motion = np.concatenate([du, dF, dlam[:, None]], axis=-1)
+        steps.stage.reference[rows] = motion
+        steps.stage.switched[rows] = True
+        self.stages.switched[steps.cases[rows]] = True
+        self.branch_index[steps.cases[rows]] = stage.switch
 
     def _close_turns(self, steps: AcceptedSteps, cut_rows: np.ndarray, cut_column: np.ndarray) -> None:
         """Close a turn where a cycle stage's step is cut at its cycle (or target) column.

@@ -97,6 +97,12 @@ class StageArrays:
         ``(B, 2n + 1)`` the motion (du, dF, dlambda) at the start of the
         current step (NaN at a stage's start): each tangent is oriented to
         continue it (see the module docstring).
+    switch
+        ``(B,)`` int: at the stage's first simple bifurcation point, 0 goes on
+        along the branch followed, +1 or -1 leaves along the bifurcating
+        branch that way (:mod:`ncstab.paths.branch_switching`).
+    switched
+        ``(B,)`` bool: the case has switched branch in this stage.
     secondary_state
         ``(B,)`` int: the contact-state bits (which gaps are closed, which
         normal contacts of no_tension laws are open), frozen within a step and
@@ -122,6 +128,8 @@ class StageArrays:
     target_sign: np.ndarray
     orientation: np.ndarray
     reference: np.ndarray
+    switch: np.ndarray
+    switched: np.ndarray
     secondary_state: np.ndarray
     cycles_done: np.ndarray
 
@@ -143,6 +151,8 @@ class StageArrays:
             target_sign=np.ones(size),
             orientation=np.ones(size),
             reference=np.full((size, 2 * n + 1), np.nan),
+            switch=np.zeros(size, dtype=int),
+            switched=np.zeros(size, dtype=bool),
             secondary_state=np.zeros(size, dtype=int),
             cycles_done=np.zeros(size, dtype=int),
         )
@@ -214,6 +224,16 @@ class PathTangent:
         ``(B,)`` the driven parameter's rate.
     det_m
         ``(B,)`` det M, the mixed-control determinant (unscaled).
+    branch
+        ``(B,)`` the branch test: the component of the (oriented, unflipped)
+        cofactor vector along the reference motion.  It changes sign exactly
+        where the cofactor vector passes through zero and turns against the
+        motion (a simple bifurcation point: it is the bordered determinant
+        det [[M, -g'], [t^T]] of a continuation code), and never at a limit
+        point, where the cofactor vector turns smoothly with the path.
+    flipped
+        ``(B,)`` bool: the tangent was flipped to continue the reference
+        (every state past a bifurcation point, until the next one).
     """
 
     dv: np.ndarray
@@ -221,6 +241,8 @@ class PathTangent:
     dF: np.ndarray
     dlam: np.ndarray
     det_m: np.ndarray
+    branch: np.ndarray | None = None
+    flipped: np.ndarray | None = None
 
     def motion(self) -> np.ndarray:
         """``(B, 2n + 1)``: (du, dF, dlambda), the vector the orientation continues."""
@@ -264,16 +286,21 @@ def path_tangent(
         if oriented:
             scale = scale * stage.orientation
         tangent = PathTangent(dv * scale[:, None], du * scale[:, None], df * scale[:, None], dlam * scale, det_m)
+        tangent.branch = norm
     if oriented:
         _continue_reference(tangent, stage.reference)
     return tangent
 
 
 def _continue_reference(tangent: PathTangent, reference: np.ndarray) -> None:
-    """Flip (in place) the tangents whose motion reverses ``reference`` (NaN rows: none)."""
+    """Flip (in place) the tangents whose motion reverses ``reference`` (NaN rows: none),
+    and set the branch test from the unscaled norm held in ``tangent.branch``."""
     with np.errstate(invalid="ignore"):
-        product = np.sum(tangent.motion() * reference, axis=-1)
+        product = np.sum(tangent.motion() * reference, axis=-1) / np.sqrt(np.sum(reference * reference, axis=-1))
     flip = product < 0
+    tangent.flipped = flip
+    if tangent.branch is not None:
+        tangent.branch = np.where(np.isfinite(product), product, 1.0) * tangent.branch
     if flip.any():
         for name in ("dv", "du", "dF"):
             value = getattr(tangent, name)
@@ -321,4 +348,4 @@ def _path_tangent_2(
     dv *= scale[:, None]
     du *= scale[:, None]
     df *= scale[:, None]
-    return PathTangent(dv, du, df, det_m * scale, det_m)
+    return PathTangent(dv, du, df, det_m * scale, det_m, norm)

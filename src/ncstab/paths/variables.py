@@ -29,7 +29,7 @@ VARIABLES: dict[str, tuple[str, str, str]] = {
     "det_K": ("1", "determinant of K", "det K; vanishes at a limit point under force control (divergence), seed Eq. (36)"),
     "hill": ("1", "smallest eigenvalue of K_sym", "Hill's condition (second-order work dF . dDelta > 0 in every direction) holds while positive"),
     "d2W": ("1", "normalised second-order work along the path", "dF . dDelta / (|dF| |dDelta|) along the path tangent"),
-    "flutter": ("1", "flutter discriminant of K", "(tr K)^2 - 4 det K; negative when K has complex eigenvalues"),
+    "flutter": ("1", "growth rate max Re s", "max Re s over the roots of det(M s^2 + C s + K) = 0, the linearised dynamics about the state (> 0 unstable; 0 on an undamped stable state), time in the system's units"),
     "mixed_control": ("1", "mixed-control determinant", "det K_SS over the stage's force-controlled dofs S (1 under kinematic control); controllability is lost where it vanishes, seed Eq. (35)"),
     "n_steps": ("1", "number of stored states", "stored states of each case; later steps are NaN padding"),
     "status": ("", "case status", "finished, stopped:<event>, or failed:<reason>"),
@@ -46,6 +46,7 @@ VARIABLES: dict[str, tuple[str, str, str]] = {
     "load": ("1", "load parameter", "the system's load parameter (P) at each stored state, in the system's units"),
     "theta": ("rad", "spring rotation theta", "relative rotation across each rotational spring"),
     "moment": ("1", "spring moment", "moment of each rotational spring, in units of its stiffness (k or C)"),
+    "branch_index": ("1", "branch of each state", "0 on the path followed from the start; +1 or -1 once the case has left a simple bifurcation point along the bifurcating branch, that way (at_bifurcation = \"switch\" or \"branches\")"),
     "accepted_steps": ("1", "accepted integrator steps", "accepted arclength steps of the case"),
     "rejected_steps": ("1", "rejected integrator steps", "steps rejected by error control or Newton projection"),
 }
@@ -67,6 +68,11 @@ EVENT_FIELDS: dict[str, tuple[str, str, str]] = {
     "moment": ("1", "moment at {event}", "spring moments at the first {event}"),
     "load": ("1", "load parameter at {event}", "the load parameter (P) at the first {event}"),
 }
+
+#: The flutter variable of a system without inertia.
+FLUTTER_WITHOUT_INERTIA = ("1", "flutter discriminant of K", "(tr K)^2 - 4 det K; negative when K has complex eigenvalues (a system without inertia)")
+#: The critical frequency of a flutter onset (systems with inertia).
+FLUTTER_FREQUENCY = ("1", "frequency at flutter_onset", "omega of the critical pair s = +-i omega of det(M s^2 + C s + K) at the first flutter_onset, in units of the system's time")
 
 #: Member dimensions of interaction families and the names a study may not use.
 MEMBER_DIMENSIONS = ("contact", "spring")

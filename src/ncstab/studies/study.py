@@ -70,7 +70,7 @@ _NAME = re.compile(r"[A-Za-z0-9_-]+")
 _SYSTEM_SETTINGS = ("name", "secondary_contacts", "normal")
 #: Structural settings of every shipped system (when the system itself is unknown).
 _ALL_SETTINGS = ("reduction", "grains", "links", "load")
-_STAGE_KEYS = ("hold", "drive", "stop_at", "cycle")
+_STAGE_KEYS = ("hold", "drive", "stop_at", "cycle", "at_bifurcation")
 _CYCLE_KEYS = ("center", "turns", "direction", "dofs")
 _OUTPUT_KEYS = ("figures", "file")
 _MAP_KEYS = ("directions", "grid")
@@ -650,6 +650,11 @@ def _stage(
                 stage[key] = {q: _stage_value(v, f"{prefix}.{key}.{q}", errors, references) for q, v in table.items()}
     if "stop_at" in raw:
         stage["stop_at"] = _stop_at(raw["stop_at"], f"{prefix}.stop_at", errors)
+    if "at_bifurcation" in raw:
+        if "cycle" in raw:
+            errors.add(f"{prefix}.at_bifurcation", "a cycle stage goes on through bifurcations: at_bifurcation is for linear stages")
+        else:
+            stage["at_bifurcation"] = raw["at_bifurcation"]  # checked by parse_programme
     return stage, checkable
 
 
@@ -1034,6 +1039,10 @@ def parse_study(text: str, path: str | None = None) -> Study:
     study_map = _map_section(data, errors)
     figures, output = _output_section(data, errors)
 
+    if programme is not None and programme.follows_branches:
+        from ncstab.paths.api import with_branches
+
+        parameters = with_branches(programme, parameters)
     if errors.items or programme is None:
         if not errors.items:  # pragma: no cover - a missing programme always reports why
             errors.add("loading", "no valid loading programme")

@@ -27,6 +27,9 @@ grains, so that the seed's laws apply to every contact unchanged.
 
 Secondary contacts: the gaps between non-neighbour grains (centre distance
 minus 2R), each closing a frictionless spring of stiffness kappa k_n.
+Inertia: grains of equal mass m, M = I in units of m (time in units of
+sqrt(m / k_n)); each dof of the reduced diamond moves two grains, each force
+acts on one (the per-contact virtual work of seed Eq. 5), so M = I there too.
 """
 
 from __future__ import annotations
@@ -84,6 +87,7 @@ def symmetric_diamond() -> SystemDefinition:
             GapDefinition("top_bottom", 2 * (c0 - d1) - 1, weight=0.5),
             GapDefinition("left_right", 2 * (s0 - d2) - 1, weight=0.5),
         ),
+        mass=((1, 0), (0, 1)),
         work_factor=0.5,
         units=GRANULAR_UNITS,
         settings=(("reduction", "symmetric"),),
@@ -125,6 +129,7 @@ def axes_diamond() -> SystemDefinition:
             GapDefinition("top_bottom", 2 * c0 - symbol["top"] - symbol["bottom"] - 1),
             GapDefinition("left_right", 2 * s0 - symbol["left"] - symbol["right"] - 1),
         ),
+        mass=tuple(tuple(int(i == j) for j in range(4)) for i in range(4)),
         work_factor=0.25,
         units=GRANULAR_UNITS,
         settings=(("reduction", "axes"),),
@@ -178,6 +183,7 @@ def ring(grains: int) -> SystemDefinition:
         forces=tuple(f"F{i}" for i in range(1, n + 1)),
         families=(contacts,),
         gaps=tuple(gaps),
+        mass=tuple(tuple(int(i == j) for j in range(n)) for i in range(n)),
         work_factor=1.0 / n,
         units=GRANULAR_UNITS,
         settings=(("grains", n),),

@@ -1,0 +1,137 @@
+"""Branch switching at a simple bifurcation point.
+
+At a simple bifurcation point x* = (v*, lambda*) of the constraint
+G(x) = P u(v) + Q F(v, P(lambda)) - g(lambda) = 0 (the stage's equilibrium
+under its control), the Jacobian A = [M | -g'_eff] (n x (n + 1)) has rank
+n - 1: its null space is spanned by the tangent t0 of the branch followed
+and one more vector t1, and psi^T A = 0 for one left null vector psi.  The
+branches through x* leave along the directions a t0 + b t1 that solve the
+algebraic bifurcation equation (Lyapunov--Schmidt reduction to second order;
+Keller 1977, Seydel "Practical Bifurcation and Stability Analysis" 5.5,
+BifurcationKit's branch switching):
+
+    c00 a^2 + 2 c01 a b + c11 b^2 = 0,   c_ij = psi^T D2G(x*)[t_i, t_j].
+
+(1, 0) is one root (the branch followed, c00 = 0 up to the location's
+accuracy); the other is the bifurcating branch's direction.  The second
+derivatives D2G[t_i, t_j] are the derivatives of A along t_j applied to t_i,
+taken by central differences of the engine's own tangent (step 1e-5: the
+coefficients to about 1e-10, far more than the choice of a direction needs;
+the branch itself is then followed to the integrator's accuracy).  The path
+leaves x* by a short step along the chosen direction and is projected back
+onto equilibrium (laws with a total form) before the engine goes on.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ncstab.paths.options import PathOptions
+from ncstab.paths.projection import project_finite
+from ncstab.paths.rhs import StateLayout, evaluate_at
+from ncstab.paths.tangent_field import StageArrays, control_matrix, effective_rate
+
+__all__ = ["DERIVATIVE_STEP", "LEAVING_STEP", "bifurcating_direction", "switch_branch"]
+
+#: Step of the central differences for the second derivatives of G.
+DERIVATIVE_STEP = 1e-5
+#: Length of the step that leaves the bifurcation point along the new branch.
+LEAVING_STEP = 1e-4
+
+
+def _jacobian(batch: Any, stage: StageArrays, y: np.ndarray, layout: StateLayout) -> np.ndarray:
+    """A = [M | -g'_eff] at states ``y``: ``(B, n, n + 1)`` in (v, lambda)."""
+    evaluation = evaluate_at(batch, stage, y, layout)
+    matrix = control_matrix(evaluation.du_dv, evaluation.dF_dv, stage.force_controlled)
+    _, dg = stage.control_path(y[:, layout.lam])
+    dg = effective_rate(stage, dg, evaluation.dF_dload)
+    return np.concatenate([matrix, -dg[:, :, None]], axis=-1)
+
+
+def _shifted(y: np.ndarray, direction: np.ndarray, step: float, layout: StateLayout) -> np.ndarray:
+    out = y.copy()
+    out[:, layout.v] += step * direction[:, :-1]
+    out[:, layout.lam] += step * direction[:, -1]
+    return out
+
+
+def bifurcating_direction(
+    batch: Any, stage: StageArrays, y: np.ndarray, incoming: np.ndarray, layout: StateLayout
+) -> np.ndarray:
+    """The direction ``(B, n + 1)`` in (v, lambda) of the branch that crosses the one
+    followed (whose tangent is ``incoming``) at the bifurcation points ``y``.
+
+    Unit vectors, signed so that their component along the second null vector
+    t1 is positive (t1 itself signed by its largest entry): a deterministic
+    choice, which ``direction = -1`` reverses.
+    """
+    A = _jacobian(batch, stage, y, layout)
+    u_left, _, vt = np.linalg.svd(A)
+    psi = u_left[:, :, -1]  # (B, n): left null vector
+    null = np.swapaxes(vt[:, -2:, :], -1, -2)  # (B, n + 1, 2): right null space
+    t0 = np.einsum("bkj,bj->bk", null, np.einsum("bkj,bk->bj", null, incoming))
+    t0 /= np.linalg.norm(t0, axis=-1, keepdims=True)
+    t1 = null[:, :, 0] - np.sum(null[:, :, 0] * t0, -1, keepdims=True) * t0
+    other = null[:, :, 1] - np.sum(null[:, :, 1] * t0, -1, keepdims=True) * t0
+    t1 = np.where(np.linalg.norm(t1, axis=-1, keepdims=True) >= np.linalg.norm(other, axis=-1, keepdims=True), t1, other)
+    t1 /= np.linalg.norm(t1, axis=-1, keepdims=True)
+    rows = np.arange(y.shape[0])
+    t1 *= np.sign(t1[rows, np.argmax(np.abs(t1), axis=-1)])[:, None]
+
+    def second(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """psi^T D2G[a, b] by central differences of A along b."""
+        h = DERIVATIVE_STEP
+        plus = _jacobian(batch, stage, _shifted(y, b, h, layout), layout)
+        minus = _jacobian(batch, stage, _shifted(y, b, -h, layout), layout)
+        return np.einsum("bi,bij,bj->b", psi, (plus - minus) / (2 * h), a)
+
+    c00, c01, c11 = second(t0, t0), 0.5 * (second(t0, t1) + second(t1, t0)), second(t1, t1)
+    # The two roots (a, b) of c00 a^2 + 2 c01 a b + c11 b^2 = 0, each written two ways
+    # (one of which may vanish); the bifurcating branch is the root less aligned with
+    # t0 (the other is the branch followed: c00 = 0 up to the location's accuracy).
+    root = np.sqrt(np.maximum(c01 * c01 - c00 * c11, 0.0))
+    candidates = np.stack(
+        [
+            np.stack([c11, -c01 - root], -1),
+            np.stack([c11, -c01 + root], -1),
+            np.stack([-c01 - root, c00], -1),
+            np.stack([-c01 + root, c00], -1),
+        ],
+        axis=1,
+    )  # (B, 4, 2): (a, b)
+    norms = np.linalg.norm(candidates, axis=-1)
+    scale = np.maximum(np.abs(c00) + np.abs(c01) + np.abs(c11), 1e-300)
+    usable = norms > 1e-9 * scale[:, None]
+    candidates = candidates / np.where(usable, norms, 1.0)[..., None]
+    alignment = np.where(usable, np.abs(candidates[:, :, 0]), np.inf)
+    pick = np.argmin(alignment, axis=1)
+    degenerate = ~usable.any(axis=1)  # every coefficient ~0: take t1
+    a, b = candidates[rows, pick, 0], candidates[rows, pick, 1]
+    a, b = np.where(degenerate, 0.0, a), np.where(degenerate, 1.0, b)
+    sign = np.where(b < 0, -1.0, 1.0)
+    direction = (a * sign)[:, None] * t0 + (b * sign)[:, None] * t1
+    return direction / np.linalg.norm(direction, axis=-1, keepdims=True)
+
+
+def switch_branch(
+    batch: Any,
+    stage: StageArrays,
+    y: np.ndarray,
+    incoming: np.ndarray,
+    sense: np.ndarray,
+    layout: StateLayout,
+    options: PathOptions,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Leave the bifurcation points ``y`` along the bifurcating branch, way ``sense`` (+-1).
+
+    Returns the new states (a step of :data:`LEAVING_STEP` along the branch,
+    projected onto equilibrium for laws with a total form) and the direction
+    taken ``(B, n + 1)`` in (v, lambda).
+    """
+    direction = sense[:, None] * bifurcating_direction(batch, stage, y, incoming, layout)
+    moved = _shifted(y, direction, LEAVING_STEP, layout)
+    if batch.has_total_form:
+        moved, _, _ = project_finite(batch, stage, moved, np.zeros(y.shape[0]), layout, options)
+    return moved, direction
