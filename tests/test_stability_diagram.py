@@ -95,6 +95,11 @@ def test_hill_before_limit_is_hill_loss_strictly_before_the_limit_point(diagram)
     )
 
 
+def _runs(collection):
+    """The hatched rectangles of a collection: the closed sub-paths of its compound path(s)."""
+    return [polygon for path in collection.get_paths() for polygon in path.to_polygons()]
+
+
 def _hatched_cells(axes, gid):
     """Number of grid cells covered by the hatched rectangles of a panel (unit = one cell)."""
     collections = [c for c in axes.collections if c.get_gid() == gid]
@@ -104,8 +109,7 @@ def _hatched_cells(axes, gid):
     x_cell = np.diff(axes.get_xlim())[0] / len(GAMMA)
     y_cell = np.diff(axes.get_ylim())[0] / len(LATERAL)
     total = 0.0
-    for path in collection.get_paths():
-        vertices = path.vertices
+    for vertices in _runs(collection):
         total += np.ptp(vertices[:, 0]) * np.ptp(vertices[:, 1])
     return total / (x_cell * y_cell)
 
@@ -124,8 +128,8 @@ def test_figure_panels_hatching_and_labels(diagram):
         collections = [c for c in panel.collections if c.get_gid() == f"hill_before_limit:{law}"]
         covered = np.zeros((len(LATERAL), len(GAMMA)), bool)
         for collection in collections:
-            for path in collection.get_paths():
-                (x0, y0), (x1, y1) = path.vertices.min(0), path.vertices.max(0)
+            for vertices in _runs(collection):
+                (x0, y0), (x1, y1) = vertices.min(0), vertices.max(0)
                 gx = np.array(GAMMA)
                 gy = np.array(LATERAL)
                 covered[np.ix_((gy > y0) & (gy < y1), (gx > x0) & (gx < x1))] = True
