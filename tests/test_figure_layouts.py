@@ -306,3 +306,16 @@ def test_progress_true_shows_a_bar_of_figures_on_standard_error(fan_dataset, tmp
     captured = capsys.readouterr()
     assert captured.out == ""
     assert "figures" in captured.err and "2/2" in captured.err
+
+
+def test_an_archive_without_an_event_table_is_drawn_as_never_located(plane_dataset):
+    """A lean archive leaves out the tables of events that never occur."""
+    lean = plane_dataset.drop_vars([name for name in plane_dataset.data_vars if name.startswith("limit_point_")])
+    figure = FIGURE_KINDS["load_displacement"](lean)
+    assert sorted(a.get_gid() for a in figure.axes if str(a.get_gid()).startswith("plane:")) == [
+        "plane:end:cundall_strack", "plane:end:mcnamara"]
+    figure = FIGURE_KINDS["stability"](lean)
+    panel = next(a for a in figure.axes if a.get_gid() == "diagram:limit_point:mcnamara")
+    (mesh,) = [c for c in panel.collections if isinstance(c, QuadMesh)]
+    assert np.ma.getmaskarray(mesh.get_array()).all()  # light grey everywhere: never located
+    rendered(figure)
