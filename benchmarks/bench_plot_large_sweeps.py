@@ -21,7 +21,7 @@ figure drawn the old way: one ``ax.plot`` per case and a legend placed with
 ``load_displacement`` on the 4,096-case archives only (minutes on 65,536).
 Times are wall-clock; the machine's load average is printed with them.
 
-Run:  python benchmarks/bench_plot_large_sweeps.py [--sides 64,256] [--repeat 3]
+Run:  python benchmarks/bench_plot_large_sweeps.py [--sides 64,256] [--repeat 3] [--no-baseline]
 
 Prints the median of ``--repeat`` timings of each drawing and the ratio to
 the baseline.  A benchmark, not a test: nothing here asserts a time.
@@ -107,6 +107,8 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--sides", default="64,256", help="2-D sweeps of side x side cases (comma-separated)")
     parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--no-baseline", action="store_true",
+                        help="skip the old one-curve-per-case figure (minutes on a loaded machine)")
     args = parser.parse_args(argv)
     sides = [int(s) for s in args.sides.split(",")]
     with tempfile.TemporaryDirectory(prefix="ncstab-bench-plot-") as scratch:
@@ -127,7 +129,7 @@ def main(argv: list[str] | None = None) -> None:
                 for kind in KINDS:
                     seconds = timed(partial(draw_figures, dataset, out, kinds=[kind]), args.repeat)
                     baseline = ratio = ""
-                    if n <= 4096 and kind == "load_displacement":
+                    if n <= 4096 and kind == "load_displacement" and not args.no_baseline:
                         base = timed(partial(old_figure, dataset, kind, out / "baseline.png"), 1)
                         baseline, ratio = f"{base:9.2f}", f"{base / seconds:6.1f}"
                     print(f"{shape:>5} {n:>7} {kind:>28} {seconds:8.2f} {baseline:>9} {ratio:>6}")
