@@ -120,9 +120,12 @@ class CurvesContext:
         style = {**(PATH_WITH_CLOSED_FORM_STYLE if under_closed_form else PATH_STYLE), "color": self.colours[k]}
         first = self.same_as[k]
         if first is not None:
-            followers = [j for j in range(k) if self.same_as[j] == first]
-            dash = COINCIDENT_DASH
-            style.update(linestyle=(dash * (1 + len(followers)), (dash, dash)), alpha=0.9, zorder=2.5)
+            # The followers of one path take turns along it, a dash each, and leave one gap
+            # in every turn for the first: every colour shows.
+            followers = [j for j, same in enumerate(self.same_as) if same == first]
+            period = COINCIDENT_DASH * (len(followers) + 1)
+            offset = (period - COINCIDENT_DASH * followers.index(k)) % period
+            style.update(linestyle=(offset, (COINCIDENT_DASH, period - COINCIDENT_DASH)), alpha=0.9, zorder=2.5)
         return style
 
     def draws_overlay(self, k: int) -> bool:

@@ -409,7 +409,7 @@ RANGE_SCALES = ("linear", "log")
 #: Most values one range may give (a sweep dimension longer than this is a typo).
 MAX_RANGE_VALUES = 1_000_000
 #: A ``step`` range keeps ``start + k*step`` while it passes ``stop`` by at most this
-#: fraction of ``|step|`` (rounding: 0.1 + 0.1 + 0.1 is 3e-17 past 0.3); a last value
+#: fraction of ``|step|`` (rounding: 3 * 0.1 is 4e-17 past 0.3); a last value
 #: within that tolerance of ``stop`` is ``stop`` exactly.
 RANGE_STEP_TOL = 1e-9
 
