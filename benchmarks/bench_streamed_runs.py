@@ -45,10 +45,7 @@ STUDY = ROOT / "studies" / "stability_diagram.toml"
 def study_text(side: int | None, laws: list[str] | None) -> str:
     text = STUDY.read_text()
     if side is not None:
-        values = [round(0.1 + 1.9 * k / (side - 1), 6) for k in range(side)]
-        lateral = [round(0.8 * k / (side - 1), 6) for k in range(side)]
-        text = re.sub(r"gamma = \[[^\]]*\]", f"gamma = {values}", text)
-        text = re.sub(r"F2_lateral = \[[^\]]*\]", f"F2_lateral = {lateral}", text)
+        text = re.sub(r"num = 64\b", f"num = {side}", text)  # the gamma and F2_lateral ranges
     if laws:
         text = re.sub(r"names = \[[^\]]*\]", f"names = {json.dumps(laws)}", text)
     return text

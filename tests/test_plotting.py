@@ -30,7 +30,12 @@ from ncstab.plotting import (
     plot_load_rotation,
     plot_stability,
 )
-from ncstab.plotting.style import case_colours, format_parameter, law_display_name
+from mpl_toolkits.mplot3d import proj3d
+
+from ncstab.plotting.curves import BRANCH_COLOURS
+from ncstab.plotting.curves_3d import VIEW
+from ncstab.plotting.stability_curves import D2W_EXPLANATION
+from ncstab.plotting.style import case_colours, format_parameter, law_display_name, symbolic_text
 from ncstab.systems.closed_forms import (
     diamond_displacements,
     mcnamara_branch_length,
@@ -86,6 +91,32 @@ def rigid() -> xr.Dataset:
     path = follow(
         SystemSpec(normal="rigid"),
         ["mcnamara", "turco"],
+        [{"hold": {"F2": 0.0}, "drive": {"F1": 1.0}}],
+        {"alpha0": ALPHA0},
+        OPTIONS,
+    )
+    return path.to_dataset()
+
+
+@pytest.fixture(scope="module")
+def fold() -> xr.Dataset:
+    """Seed Figs. 3-5: McNamara, gamma = 2, F2 = 0, Delta_1* driven to 0.5, past the maximum of alpha."""
+    path = follow(
+        SystemSpec(secondary_contacts="ignore"),
+        ["mcnamara"],
+        [{"hold": {"F2": 0.0}, "drive": {"D1": 0.5}}],
+        {"gamma": 2.0, "alpha0": ALPHA0},
+        OPTIONS,
+    )
+    return path.to_dataset()
+
+
+@pytest.fixture(scope="module")
+def pure_shear() -> xr.Dataset:
+    """Seed Figs. 14-15 with the two laws whose pure-shear limit is the same (seed Eq. 60)."""
+    path = follow(
+        SystemSpec(normal="rigid"),
+        ["cundall_strack", "mcnamara"],
         [{"hold": {"F2": 0.0}, "drive": {"F1": 1.0}}],
         {"alpha0": ALPHA0},
         OPTIONS,
@@ -352,7 +383,7 @@ def test_stability_panels_show_the_indicators_and_their_zero_crossing(preloaded)
         "normalised $d^2W$",
     ]
     case = case_data(preloaded, "mcnamara")
-    for axes, name in zip(panels, ("det_K", "hill", "d2W")):
+    for axes, name in zip(panels[:2], ("det_K", "hill")):
         (path,) = lines_with(axes, "path:")
         np.testing.assert_array_equal(path.get_ydata(), case[name].values)
         np.testing.assert_array_equal(path.get_xdata(), case["u"].sel(dof="D1").values)
@@ -364,6 +395,122 @@ def test_stability_panels_show_the_indicators_and_their_zero_crossing(preloaded)
         assert marker.get_xdata()[0] == float(case["limit_point_u"].sel(dof="D1"))
         assert abs(marker.get_ydata()[0]) < 1e-8
     assert panels[2].get_ylim() == (-1.1, 1.1)
+
+
+def test_d2w_is_explained_broken_where_it_jumps_and_not_marked_there(preloaded):
+    axes = plot_stability(preloaded).axes[2]
+    assert axes.get_title(loc="left") == D2W_EXPLANATION
+    case = case_data(preloaded, "mcnamara")
+    (path,) = lines_with(axes, "path:")
+    y, x = np.asarray(path.get_ydata()), np.asarray(path.get_xdata())
+    drawn = ~np.isnan(y)
+    # Every stored value is drawn, in order; the line breaks (a NaN) at each jump.
+    np.testing.assert_array_equal(y[drawn], case["d2W"].values)
+    np.testing.assert_array_equal(x[drawn], case["u"].sel(dof=1).values)
+    breaks = np.flatnonzero(~drawn) - np.arange((~drawn).sum())  # index of the state after each break
+    stage, s, d2w = case["stage"].values, case["s"].values, case["d2W"].values
+    limit = float(case["limit_point_s"])
+    expected = set(np.flatnonzero(np.diff(stage) != 0) + 1)  # stage 1 -> stage 2
+    (at,) = np.flatnonzero((s[:-1] <= limit) & (limit <= s[1:])) + 1
+    assert d2w[at - 1] > 0 > d2w[at]  # d2W jumps at the limit point: dF turns back
+    expected.add(int(at))
+    assert sorted(breaks) == sorted(expected)
+    # No marker on the jump: neither the limit point nor Hill's loss (located there too).
+    assert not lines_with(axes, "event:limit_point:") and not lines_with(axes, "event:hill_loss:")
+
+
+# --- seed figures that show the paper's point -----------------------------------------------
+
+
+def test_a_path_past_the_maximum_of_alpha_is_coloured_by_branch_of_eq48(fold):
+    case = case_data(fold, "mcnamara")
+    alpha, F1 = case["alpha"].values, case["F"].sel(dof=1).values
+    k = int(np.argmax(alpha))
+    assert 0 < k < alpha.size - 1  # the path passes the maximum of alpha
+    for plot, x_of in ((plot_load_rotation, alpha), (plot_load_displacement, case["u"].sel(dof=1).values)):
+        axes = plot(fold).axes[0]
+        (minus,) = lines_with(axes, "path:-:")
+        (plus,) = lines_with(axes, "path:+:")
+        assert to_rgba(minus.get_color())[:3] == to_rgba(BRANCH_COLOURS[-1])[:3]
+        assert to_rgba(plus.get_color())[:3] == to_rgba(BRANCH_COLOURS[1])[:3]
+        n = len(minus.get_xdata())
+        # The two pieces are the path, in order, sharing the state where they join.
+        np.testing.assert_array_equal(np.concatenate([minus.get_xdata(), plus.get_xdata()[1:]]), x_of)
+        assert minus.get_xdata()[-1] == plus.get_xdata()[0]
+        # Each state is on the root of Eq. (48) of its colour: F1 sin(a)cos(a) - sin(a) = -+sqrt(delta)
+        # (exactly the branch sign; states within 1e-6 of the fold, where the roots meet, excepted).
+        root = F1 * np.sin(alpha) * np.cos(alpha) - np.sin(alpha)
+        sign = np.where(np.arange(alpha.size) < n - 1, -1, 1)
+        clear = np.abs(root) > 1e-6
+        assert clear.sum() >= alpha.size - 2
+        np.testing.assert_array_equal(np.sign(root[clear]), sign[clear])
+        for branch, colour in (("-", BRANCH_COLOURS[-1]), ("+", BRANCH_COLOURS[1])):
+            (overlay,) = lines_with(axes, f"closed_form:{branch}:")
+            assert to_rgba(overlay.get_color())[:3] == to_rgba(colour)[:3]
+        assert abs(n - 1 - k) <= 1  # the colours change at the maximum of alpha
+    # The apparent crossing of Fig. 4 is pointed at: where the branches meet.
+    axes = plot_load_displacement(fold).axes[0]
+    (note,) = [text for text in axes.texts if text.get_gid() == "branch_junction"]
+    (plus,) = lines_with(axes, "path:+:")
+    assert note.xy == (plus.get_xdata()[0], plus.get_ydata()[0])
+    assert "not a bifurcation" in note.get_text()
+
+
+def test_the_3d_view_shows_the_fold_in_alpha(fold):
+    axes = plot_load_displacement_rotation(fold).axes[0]
+    assert (axes.elev, axes.azim) == VIEW
+    pieces = lines_with(axes, "path:")
+    assert [p.get_gid().split(":")[1] for p in pieces] == ["-", "+"]
+    xyz = [np.concatenate([np.asarray(p.get_data_3d()[i]) for p in pieces]) for i in range(3)]
+    screen_x, _, _ = proj3d.proj_transform(*xyz, axes.get_proj())
+    # Seen from VIEW the path goes across the page and comes back: the fold is in sight, by
+    # more than 4 % of the path's width on the page (alpha turns back by a fifth of its range;
+    # the former view, azimuth -56, showed it edge-on: 0 %).
+    k = int(np.argmax(screen_x))
+    assert 0 < k < screen_x.size - 1
+    assert screen_x[k] - screen_x[-1] > 0.04 * np.ptp(screen_x)
+
+
+def test_cundall_strack_and_mcnamara_coincide_in_pure_shear_and_both_show(pure_shear):
+    # The premise (seed Eq. 60): both paths are the rotational model's first branch, Eq. (62),
+    # up to the blocking contact (checked against the closed form; the engine samples the two
+    # laws at different arclengths, so their stored states differ).
+    for law in ("cundall_strack", "mcnamara"):
+        case = case_data(pure_shear, law)
+        alpha, F1 = case["alpha"].values, case["F"].sel(dof=1).values
+        first = alpha < float(pure_shear_blocking_alpha(ALPHA0, "rotational")) - 1e-9
+        np.testing.assert_allclose(
+            F1[first], pure_shear_load_rotation(alpha[first], ALPHA0, 0.0, "rotational"), rtol=0, atol=1e-9
+        )
+    figure = plot_load_rotation(pure_shear)
+    axes = figure.axes[0]
+    first, second = lines_with(axes, "path:")
+    assert "Cundall" in first.get_gid() and "McNamara" in second.get_gid()
+    assert first.get_linestyle() == "-" and second.get_linestyle() == "--"  # dashed over it
+    assert second.get_zorder() > first.get_zorder()
+    assert to_rgba(first.get_color())[:3] != to_rgba(second.get_color())[:3]
+    texts = legend_texts(figure)
+    assert texts[1] == (
+        "McNamara et al. 2008 (hyperelastic):\nsame path as Cundall–Strack in pure shear (seed Eq. 60)"
+    )
+    # The closed form (Eq. 62, blocking Eq. 66) is drawn once, with the first case.
+    assert len(lines_with(axes, "closed_form:first:")) == 1
+    assert len(lines_with(axes, "closed_form:blocking:")) == 1
+
+
+def test_titles_and_legends_write_the_symbols(preloaded, uniaxial):
+    dataset = preloaded.assign_attrs(study_description="Seed: gamma = 0.5, F2* = 0.75, alpha0 = pi/4")
+    assert plot_load_rotation(dataset).get_suptitle() == (
+        "Seed: γ = 0.5, F₂* = 0.75, α₀ = π/4\n$F_1^*$ against $\\alpha$"
+    )
+    assert plot_load_displacement(dataset).get_suptitle().endswith("$F_1^*$ against $\\Delta_1^*$")
+    # Without a description: the kind's title and the fixed parameters, in symbols.
+    assert plot_load_rotation(uniaxial).get_suptitle() == (
+        "Load–rotation response, $\\alpha_0$ = π/4\n$F_1^*$ against $\\alpha$"
+    )
+    assert symbolic_text("alpha0 = pi/4, F1* at Delta1* = 0.2; alphabet") == (
+        "α₀ = π/4, F₁* at Δ₁* = 0.2; alphabet"
+    )
 
 
 # --- the pure-shear limit -------------------------------------------------------------------
@@ -438,7 +585,9 @@ def test_display_names_and_parameter_values():
     assert format_parameter("alpha0", np.pi / 4) == r"$\alpha_0$ = π/4"
     assert format_parameter("alpha0", 0.7) == r"$\alpha_0$ = 0.7"
     assert format_parameter("gamma", np.float64(1.25)) == r"$\gamma$ = 1.25"
-    assert format_parameter("F2_lateral", 0.75) == "F2_lateral = 0.75"
+    assert format_parameter("F2_lateral", 0.75) == r"$F_2^*$ = 0.75"  # a force: its symbol
+    assert format_parameter("D12_max", 0.1) == r"$\Delta_{12}^*$ = 0.1"
+    assert format_parameter("radius", 0.05) == "radius = 0.05"
 
 
 @pytest.mark.parametrize("laws", [["mcnamara"] * 8, ["mcnamara", "turco"] * 6])
@@ -453,11 +602,15 @@ def test_a_given_figure_is_drawn_into(uniaxial):
     assert len(lines_with(figure.axes[0], "path:")) == 4
 
 
-def test_a_large_sweep_lists_only_the_first_and_last_cases(uniaxial):
-    # 20 copies of one case along a new sweep dimension: the legend stays short.
+def test_more_than_twelve_cases_are_a_fan_not_twenty_curves(uniaxial):
+    # 20 copies of one case along a new sweep dimension: a fan with five labelled cases.
     one = uniaxial.isel(law=[0], gamma=[0])
     dataset = xr.concat([one.assign_coords(gamma=[g]) for g in np.linspace(0.1, 2.0, 20)], "gamma")
     figure = plot_load_rotation(dataset)
-    assert len(lines_with(figure.axes[0], "path:")) == 20
-    texts = legend_texts(figure)
-    assert texts[:3] == [r"$\gamma$ = 0.1", "⋯ (18 more cases)", r"$\gamma$ = 2"]
+    panel = next(a for a in figure.axes if a.collections)
+    (fan,) = [c for c in panel.collections if c.get_gid() == "fan:mcnamara"]
+    assert len(fan.get_segments()) == 20
+    assert len(lines_with(panel, "path:")) == 5
+    (legend,) = figure.legends
+    texts = [t.get_text() for t in legend.get_texts()]
+    assert texts[:2] == ["envelope of all 20 paths per law", r"$\gamma$ = 0.1"]

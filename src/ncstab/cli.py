@@ -165,7 +165,7 @@ def command_run(args: argparse.Namespace) -> int:
         else:
             write_dataset(run_study(study, progress=progress), output)
         with open_study_lazily(output) as dataset:
-            figures = draw_figures(dataset, output.parent, stem=output.stem)
+            figures = draw_figures(dataset, output.parent, stem=output.stem, progress=progress)
             print(f"{study.name}: wrote {output}")
             for figure in figures:
                 print(f"  figure {figure}")

@@ -88,12 +88,23 @@ class ClosedFormOverlay:
         The branches to draw.
     blocking
         The blocking branch, if the path reaches it.
+    path_branch
+        Shape (n_steps,): the branch each stored state of the path is on, -1
+        (``"-"``) or +1 (``"+"``), the one whose F1(alpha) is nearer; 0 for
+        states the closed form does not describe (earlier stages, past the
+        secondary contact).  None for closed forms with one branch.
     """
 
     rotation_equations: str
     displacement_equations: str
     branches: tuple[ClosedFormBranch, ...]
     blocking: Blocking | None = None
+    path_branch: np.ndarray | None = None
+
+    @property
+    def branch_equation(self) -> str:
+        """The load-rotation equation whose two roots are the branches (``"Eq. 48"``)."""
+        return "Eq. " + self.rotation_equations.removeprefix("seed Eq. ").split(", ")[-1]
 
     @property
     def equations(self) -> str:
@@ -234,7 +245,11 @@ def closed_form_overlay(
         F1 = load(grid, sign)
         D1, _ = diamond_displacements(grid, length(grid, F1), alpha0)
         branches.append(ClosedFormBranch(name=name, alpha=grid, F1=F1, D1=D1))
-    return ClosedFormOverlay(rotation, displacement, tuple(branches))
+    # The branch of each state: the root nearer its F1 (they meet where alpha turns).
+    distance = [np.abs(case.F[:, 0] - load(case.alpha, sign)) for sign in (-1, 1)]
+    on_plus = np.nan_to_num(distance[1], nan=np.inf) < np.nan_to_num(distance[0], nan=np.inf)
+    path_branch = np.where(where, np.where(on_plus, 1, -1), 0)
+    return ClosedFormOverlay(rotation, displacement, tuple(branches), path_branch=path_branch)
 
 
 def _pure_shear_overlay(

@@ -18,18 +18,32 @@ style; the caller saves the figure.  See ``docs/stability-diagrams.md``.
 
 from __future__ import annotations
 
+import math
 import textwrap
 
 import numpy as np
 import xarray as xr
 from matplotlib import colormaps, rc_context
-from matplotlib.axes import Axes
-from matplotlib.collections import LineCollection, PatchCollection
+from matplotlib.collections import LineCollection
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
-from matplotlib.patches import Patch, Rectangle
+from matplotlib.patches import Patch
 
-from ncstab.plotting.style import RC_PARAMS, fixed_parameters_text, force_label, law_display_name
+from ncstab.plotting.panel_grid import grid_width, legend_columns, panel_grid, title_and_legend
+from ncstab.plotting.plane_grid import (
+    cell_edges,
+    hatch_cells,
+    is_geometric,
+    outline,
+    parameter_label,
+)
+from ncstab.plotting.style import (
+    RC_PARAMS,
+    fixed_parameters_text,
+    force_label,
+    law_display_name,
+    symbolic_text,
+)
 
 __all__ = [
     "DIAGRAM_EVENTS",
@@ -47,14 +61,6 @@ DIAGRAM_EVENTS: dict[str, str] = {
     "controllability_loss": "loss of controllability",
 }
 
-#: Axis labels of parameters known by name (others: long_name and units).
-PARAMETER_LABELS: dict[str, str] = {
-    "gamma": r"$\gamma = k_t/k_n$",
-    "alpha0": r"$\alpha_0$ (rad)",
-    "kappa": r"$\kappa$ (secondary contact stiffness / $k_n$)",
-    "F2_lateral": r"lateral preload $F_2^* = F_2/(2R\,k_n)$",
-}
-
 #: Arclength margin for "strictly before": Hill's condition and det K vanish at
 #: the same state for hyperelastic laws (K symmetric on the path, seed Eq. 41),
 #: where the two located arclengths differ only by the event brackets (event_tol).
@@ -69,9 +75,8 @@ FAILED_HATCH = "xxx"
 FAILED_COLOUR = "0.35"
 #: Colormap of the event load F1*.
 FIELD_COLORMAP = "viridis"
-#: Size of one panel, inches (width, height), and room for titles and colour bars.
+#: Size of one panel, inches (width, height).
 PANEL_SIZE = (2.9, 2.3)
-EXTRA_HEIGHT = 1.7
 
 
 def diagram_dims(dataset: xr.Dataset) -> tuple[str, str]:
@@ -105,8 +110,8 @@ def hill_before_limit(dataset: xr.Dataset) -> xr.DataArray:
     xarray.DataArray
         Boolean, dims ``(law, p, q)`` like ``status``.
     """
-    hill = dataset["hill_loss_s"]
-    limit = dataset["limit_point_s"]
+    hill = _event_field(dataset, "hill_loss", "s")
+    limit = _event_field(dataset, "limit_point", "s")
     before = hill.notnull() & (limit.isnull() | (hill < limit - STRICTLY_BEFORE))
     before = before.transpose(*dataset["status"].dims)
     before.attrs = {
@@ -116,71 +121,26 @@ def hill_before_limit(dataset: xr.Dataset) -> xr.DataArray:
     return before.rename("hill_before_limit")
 
 
+def _event_field(dataset: xr.Dataset, event: str, field: str) -> xr.DataArray:
+    """``<event>_<field>``, or NaN over the cases where the archive has no table for the event
+    (a lean archive leaves out the events that never occur); the first dof of ``_F``."""
+    name = f"{event}_{field}"
+    if name in dataset:
+        values = dataset[name]
+        return values.isel(dof=0) if "dof" in values.dims else values
+    return xr.full_like(dataset["n_steps"], np.nan, dtype=float)
+
+
 def failed_cases(dataset: xr.Dataset) -> xr.DataArray:
     """Boolean ``(law, p, q)``: cases whose status is ``failed:<reason>``."""
     status = dataset["status"].astype(str)
     return xr.apply_ufunc(lambda s: np.char.startswith(s, "failed"), status)
 
 
-def parameter_label(dataset: xr.Dataset, name: str) -> str:
-    """Axis label of a swept parameter: its symbol, or long_name and units."""
-    if name in PARAMETER_LABELS:
-        return PARAMETER_LABELS[name]
-    attrs = dataset[name].attrs if name in dataset.coords else {}
-    label = str(attrs.get("long_name", name))
-    units = str(attrs.get("units", ""))
-    return f"{label} ({units})" if units not in ("", "1") else label
-
-
-def _cell_edges(centres: np.ndarray) -> np.ndarray:
-    """(n + 1,) cell edges around n increasing centres (midpoints, ends mirrored)."""
-    centres = np.asarray(centres, dtype=float)
-    if centres.size == 1:
-        return np.array([centres[0] - 0.5, centres[0] + 0.5])
-    middle = 0.5 * (centres[1:] + centres[:-1])
-    return np.concatenate([[2 * centres[0] - middle[0]], middle, [2 * centres[-1] - middle[-1]]])
-
-
-def _outline(mask: np.ndarray, x_edges: np.ndarray, y_edges: np.ndarray) -> list[np.ndarray]:
-    """Segments of the boundary of the union of cells where mask (shape (ny, nx)) is True."""
-    padded = np.pad(mask, 1)
-    segments = []
-    # Vertical edges: between cells (j, i-1) and (j, i).
-    for j, i in zip(*np.nonzero(padded[1:-1, 1:] != padded[1:-1, :-1])):
-        segments.append(np.array([[x_edges[i], y_edges[j]], [x_edges[i], y_edges[j + 1]]]))
-    # Horizontal edges: between cells (j-1, i) and (j, i).
-    for j, i in zip(*np.nonzero(padded[1:, 1:-1] != padded[:-1, 1:-1])):
-        segments.append(np.array([[x_edges[i], y_edges[j]], [x_edges[i + 1], y_edges[j]]]))
-    return segments
-
-
-def _hatch_cells(
-    axes: Axes, mask: np.ndarray, x_edges: np.ndarray, y_edges: np.ndarray, hatch: str, colour: str, gid: str
-) -> PatchCollection | None:
-    """Hatch the cells where mask (ny, nx) is True, one rectangle per run along x."""
-    rectangles = []
-    for j in range(mask.shape[0]):
-        row = np.concatenate([[False], mask[j], [False]])
-        starts = np.flatnonzero(row[1:] & ~row[:-1])
-        ends = np.flatnonzero(~row[1:] & row[:-1])
-        for a, b in zip(starts, ends):
-            rectangles.append(
-                Rectangle((x_edges[a], y_edges[j]), x_edges[b] - x_edges[a], y_edges[j + 1] - y_edges[j])
-            )
-    if not rectangles:
-        return None
-    collection = PatchCollection(
-        rectangles, facecolor="none", edgecolor=colour, hatch=hatch, linewidth=0.0, zorder=3
-    )
-    collection.set_gid(gid)
-    axes.add_collection(collection)
-    return collection
-
-
 def _title(dataset: xr.Dataset) -> str:
     description = str(dataset.attrs.get("study_description") or dataset.attrs.get("description") or "")
     if description:
-        return textwrap.fill(description, 100)
+        return textwrap.fill(symbolic_text(description), 100)
     details = fixed_parameters_text(dataset.attrs)
     title = "Stability diagram"
     return f"{title}: {details}" if details else title
@@ -219,24 +179,29 @@ def stability_diagram_figure(dataset: xr.Dataset, figure: Figure | None = None) 
     n_rows, n_cols = len(laws), len(DIAGRAM_EVENTS)
     before = hill_before_limit(dataset).transpose("law", y_name, x_name).values
     failed = failed_cases(dataset).transpose("law", y_name, x_name).values
-    x_edges = _cell_edges(dataset[x_name].values)
-    y_edges = _cell_edges(dataset[y_name].values)
+    x_log, y_log = is_geometric(dataset[x_name].values), is_geometric(dataset[y_name].values)
+    x_edges = cell_edges(dataset[x_name].values, log=x_log)
+    y_edges = cell_edges(dataset[y_name].values, log=y_log)
     normal = str(dataset.attrs.get("normal", "deformable"))
     load = "$\\hat F_1$" if normal == "rigid" else "$F_1^*$"
 
+    handles = [
+        Patch(facecolor=NOT_REACHED_COLOUR, edgecolor="0.6", label="not reached (event not located)"),
+        Patch(facecolor="white", edgecolor=HILL_COLOUR, hatch=HILL_HATCH,
+              label="Hill's condition lost strictly before the limit point"),
+    ]
+    n_failed = int(failed.sum())
+    if n_failed:
+        handles.append(Patch(facecolor="white", edgecolor=FAILED_COLOUR, hatch=FAILED_HATCH,
+                             label=f"failed case ({n_failed} of {failed.size}; see 'status')"))
+    ncols = legend_columns(grid_width(n_cols, PANEL_SIZE[0]), len(handles), max(len(h.get_label()) for h in handles))
+
     with rc_context({**RC_PARAMS, "hatch.linewidth": 0.7}):
-        if figure is None:
-            figure = Figure(
-                figsize=(PANEL_SIZE[0] * n_cols + 0.6, PANEL_SIZE[1] * n_rows + EXTRA_HEIGHT),
-                layout="constrained",
-            )
-        else:
-            figure.clear()
-        axes_grid = np.atleast_2d(
-            figure.subplots(n_rows, n_cols, sharex=True, sharey=True, squeeze=False)
-        )
+        grid = panel_grid(n_rows, n_cols, PANEL_SIZE, bars="columns", share="all",
+                          legend_rows=math.ceil(len(handles) / ncols), figure=figure)
+        figure, axes_grid = grid.figure, grid.axes
         for col, (event, event_title) in enumerate(DIAGRAM_EVENTS.items()):
-            field = dataset[f"{event}_F"].isel(dof=0).transpose("law", y_name, x_name).values
+            field = _event_field(dataset, event, "F").transpose("law", y_name, x_name).values
             finite = field[np.isfinite(field)]
             low, high = (float(finite.min()), float(finite.max())) if finite.size else (0.0, 1.0)
             if high <= low:
@@ -250,16 +215,18 @@ def stability_diagram_figure(dataset: xr.Dataset, figure: Figure | None = None) 
                 axes.set_gid(f"diagram:{event}:{law}")
                 values = np.ma.masked_invalid(field[row])
                 mesh = axes.pcolormesh(x_edges, y_edges, values, cmap=cmap, norm=norm, shading="flat", rasterized=True)
-                _hatch_cells(axes, before[row], x_edges, y_edges, HILL_HATCH, HILL_COLOUR, f"hill_before_limit:{law}")
-                outline = _outline(before[row], x_edges, y_edges)
-                if outline:
-                    lines = LineCollection(outline, colors=HILL_COLOUR, linewidths=0.9, zorder=4)
+                hatch_cells(axes, before[row], x_edges, y_edges, HILL_HATCH, HILL_COLOUR, f"hill_before_limit:{law}")
+                boundary = outline(before[row], x_edges, y_edges)
+                if boundary:
+                    lines = LineCollection(boundary, colors=HILL_COLOUR, linewidths=0.9, zorder=4)
                     lines.set_gid(f"hill_before_limit_outline:{law}")
                     axes.add_collection(lines)
-                _hatch_cells(axes, failed[row], x_edges, y_edges, FAILED_HATCH, FAILED_COLOUR, f"failed:{law}")
+                hatch_cells(axes, failed[row], x_edges, y_edges, FAILED_HATCH, FAILED_COLOUR, f"failed:{law}")
                 if not np.isfinite(field[row]).any():
                     axes.text(0.5, 0.5, "not reached\nin this plane", transform=axes.transAxes, ha="center",
                               va="center", color="0.45", fontsize=9, gid=f"not_reached:{law}")
+                axes.set_xscale("log" if x_log else "linear")
+                axes.set_yscale("log" if y_log else "linear")
                 axes.set_xlim(x_edges[0], x_edges[-1])
                 axes.set_ylim(y_edges[0], y_edges[-1])
                 if row == 0:
@@ -268,21 +235,9 @@ def stability_diagram_figure(dataset: xr.Dataset, figure: Figure | None = None) 
                     axes.set_ylabel(f"{textwrap.fill(law_display_name(law), 26)}\n\n{parameter_label(dataset, y_name)}")
                 if row == n_rows - 1:
                     axes.set_xlabel(parameter_label(dataset, x_name))
-            colorbar = figure.colorbar(
-                mesh, ax=list(axes_grid[:, col]), location="bottom", shrink=0.85, aspect=25, pad=0.02
-            )
+            colorbar = figure.colorbar(mesh, cax=grid.colorbars[col], orientation="horizontal")
             colorbar.set_label(force_label(normal))
             colorbar.ax.set_gid(f"colorbar:{event}")
 
-        handles = [
-            Patch(facecolor=NOT_REACHED_COLOUR, edgecolor="0.6", label="not reached (event not located)"),
-            Patch(facecolor="white", edgecolor=HILL_COLOUR, hatch=HILL_HATCH,
-                  label="Hill's condition lost strictly before the limit point"),
-        ]
-        n_failed = int(failed.sum())
-        if n_failed:
-            handles.append(Patch(facecolor="white", edgecolor=FAILED_COLOUR, hatch=FAILED_HATCH,
-                                 label=f"failed case ({n_failed} of {failed.size}; see 'status')"))
-        figure.legend(handles=handles, loc="outside lower center", ncols=len(handles), frameon=False)
-        figure.suptitle(_title(dataset))
+        title_and_legend(figure, _title(dataset), handles, ncols)
     return figure

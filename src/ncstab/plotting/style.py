@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Mapping, Sequence
 from fractions import Fraction
 
@@ -22,6 +23,8 @@ __all__ = [
     "force_label",
     "format_parameter",
     "law_display_name",
+    "parameter_symbol",
+    "symbolic_text",
 ]
 
 #: Figure size in inches (one column of a two-column journal page, scaled 2x).
@@ -62,6 +65,27 @@ PARAMETER_SYMBOLS: dict[str, str] = {
     "alpha0": r"$\alpha_0$",
     "kappa": r"$\kappa$",
 }
+
+#: A free parameter named after a force or a displacement (``F2_lateral``, ``D1_max``):
+#: the quantity it gives, dimensionless (seed Eq. 37).
+_QUANTITY_NAME = re.compile(r"^(?P<quantity>[FD])(?P<dof>\d+)(?:_\w*)?$")
+
+#: Words of plain-text descriptions written as the symbols of the figures (titles).
+_TEXT_SYMBOLS: tuple[tuple[re.Pattern[str], str], ...] = tuple(
+    (re.compile(pattern), symbol)
+    for pattern, symbol in (
+        (r"\balpha_?0\b", "α₀"),
+        (r"\balpha_?max\b", "α_max"),
+        (r"\balpha\b", "α"),
+        (r"\bgamma\b", "γ"),
+        (r"\bkappa\b", "κ"),
+        (r"\bDelta_?1\b", "Δ₁"),
+        (r"\bDelta_?2\b", "Δ₂"),
+        (r"\bF1\b", "F₁"),
+        (r"\bF2\b", "F₂"),
+        (r"\bpi\b", "π"),
+    )
+)
 
 #: event -> (marker, marker size, filled, legend text).  One legend entry per
 #: event kind present in a figure.
@@ -120,9 +144,35 @@ def _pi_fraction(value: float) -> str | None:
     return head if den == 1 else f"{head}/{den}"
 
 
+def parameter_symbol(name: str) -> str:
+    """The symbol of a parameter for labels: ``gamma`` -> γ, ``F2_lateral`` -> F₂*.
+
+    Known names (:data:`PARAMETER_SYMBOLS`); a free parameter named after a
+    generalized force or displacement (``F2_lateral``, ``D1_target``) is that
+    dimensionless quantity, :math:`F_2^*` or :math:`\\Delta_1^*`; any other name is
+    itself.
+    """
+    if name in PARAMETER_SYMBOLS:
+        return PARAMETER_SYMBOLS[name]
+    match = _QUANTITY_NAME.match(name)
+    if match:
+        letter = "F" if match["quantity"] == "F" else r"\Delta"
+        dof = match["dof"] if len(match["dof"]) == 1 else "{" + match["dof"] + "}"
+        return rf"${letter}_{dof}^*$"
+    return name
+
+
+def symbolic_text(text: str) -> str:
+    """Plain-text words written as symbols: ``"gamma = 2, F2* = 0, alpha0 = pi/4"`` ->
+    ``"γ = 2, F₂* = 0, α₀ = π/4"`` (whole words only; nothing else changes)."""
+    for pattern, symbol in _TEXT_SYMBOLS:
+        text = pattern.sub(symbol, text)
+    return text
+
+
 def format_parameter(name: str, value: object) -> str:
     """``"γ = 0.5"``, ``"α₀ = π/4"``: a parameter and its value for a label."""
-    symbol = PARAMETER_SYMBOLS.get(name, name)
+    symbol = parameter_symbol(name)
     if isinstance(value, (float, np.floating, int, np.integer)) and not isinstance(value, bool):
         number = float(value)
         text = (_pi_fraction(number) if name.startswith("alpha") else None) or f"{number:.4g}"

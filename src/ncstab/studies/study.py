@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path as FilePath
 from typing import Any
 
+import numpy as np
 import sympy as sp
 
 from ncstab.laws.definition import LawDefinition, ParameterSpec
@@ -510,18 +511,128 @@ def _parameter_specs(
     return specs
 
 
+#: Keys of a range table (``gamma = { start = 0.1, stop = 2.0, num = 64 }``).
+RANGE_KEYS = ("start", "stop", "num", "step", "scale")
+#: Scales of a range: ``linear`` (numpy.linspace) or ``log`` (numpy.geomspace).
+RANGE_SCALES = ("linear", "log")
+#: Most values one range may give (a sweep dimension longer than this is a typo).
+MAX_RANGE_VALUES = 1_000_000
+#: A ``step`` range keeps ``start + k*step`` while it passes ``stop`` by at most this
+#: fraction of ``|step|`` (rounding: 3 * 0.1 is 4e-17 past 0.3); a last value
+#: within that tolerance of ``stop`` is ``stop`` exactly.
+RANGE_STEP_TOL = 1e-9
+
+
+def _duplicates(values: Sequence[float]) -> list[float]:
+    """Values that appear more than once, sorted (one pass over a set: linear time)."""
+    seen: set[float] = set()
+    repeated: set[float] = set()
+    for value in values:
+        (repeated if value in seen else seen).add(value)
+    return sorted(repeated)
+
+
+def _range_count(table: Mapping[str, Any], field: str, errors: _Errors) -> int | None:
+    """``num`` of a range: a TOML integer from 1 to :data:`MAX_RANGE_VALUES`."""
+    num = table["num"]
+    if isinstance(num, bool) or not isinstance(num, int):
+        errors.add(
+            f"{field}.num",
+            f"expected a whole number of values (a TOML integer such as 64), got {_toml_type(num)} ({num!r})",
+        )
+        return None
+    if not 1 <= num <= MAX_RANGE_VALUES:
+        errors.add(f"{field}.num", f"{num} values: a range has from 1 to {MAX_RANGE_VALUES:,} values")
+        return None
+    return num
+
+
+def _step_values(start: float, stop: float, step: float, field: str, errors: _Errors) -> list[float] | None:
+    """``start + k*step`` for k = 0, 1, ... while not past ``stop`` by more than
+    :data:`RANGE_STEP_TOL` ``* |step|``; a last value that close to ``stop`` is ``stop``."""
+    if step == 0 or (stop - start) * step < 0:
+        errors.add(
+            f"{field}.step",
+            f"step = {step:g} does not go from start = {start:g} to stop = {stop:g}; "
+            "give a step of the sign of stop - start",
+        )
+        return None
+    span = (stop - start) / step
+    if not span < MAX_RANGE_VALUES:  # also an overflowing span (inf)
+        errors.add(
+            f"{field}.step",
+            f"step = {step:g} gives more than {MAX_RANGE_VALUES:,} values from {start:g} to {stop:g}",
+        )
+        return None
+    values = start + step * np.arange(math.floor(span + RANGE_STEP_TOL) + 1, dtype=float)
+    if abs(values[-1] - stop) <= RANGE_STEP_TOL * abs(step):
+        values[-1] = stop
+    return values.tolist()
+
+
+def _range_values(table: Mapping[str, Any], field: str, errors: _Errors) -> list[float] | None:
+    """The values of a range table, or ``None`` after reporting its errors.
+
+    ``{start, stop, num}``: ``numpy.linspace(start, stop, num)`` (endpoints
+    exact); with ``scale = "log"``: ``numpy.geomspace`` (bounds > 0);
+    ``{start, stop, step}``: :func:`_step_values`.  Each error names its key
+    (``parameters.gamma.num``).
+    """
+    before = len(errors)
+    _check_keys(table, RANGE_KEYS, field, errors, "a range")
+    for key in ("start", "stop"):
+        if key not in table:
+            errors.add(field, f"a range needs {key}: {{ start = 0.1, stop = 2.0, num = 64 }} "
+                       "or { start = 0, stop = 1, step = 0.1 }")
+    if "num" in table and "step" in table:
+        errors.add(f"{field}.step", "give num (the number of values) or step (their spacing), not both")
+    elif "num" not in table and "step" not in table:
+        errors.add(field, "a range needs num (the number of values) or step (their spacing)")
+    scale = table.get("scale", "linear")
+    if scale not in RANGE_SCALES:
+        errors.add(f"{field}.scale", f"{scale!r} is not allowed; allowed: {', '.join(RANGE_SCALES)}")
+    elif scale == "log" and "step" in table:
+        errors.add(f"{field}.scale", 'scale = "log" takes num (values evenly spaced in log), not step')
+    bounds = {key: _number(table[key], f"{field}.{key}", errors) for key in ("start", "stop") if key in table}
+    num = _range_count(table, field, errors) if "num" in table else None
+    step = _number(table["step"], f"{field}.step", errors) if "step" in table else None
+    start, stop = bounds.get("start"), bounds.get("stop")
+    if len(errors) > before or start is None or stop is None:
+        return None
+    if scale == "log":
+        for key, bound in bounds.items():
+            if bound is not None and bound <= 0:
+                errors.add(f"{field}.{key}", f"{key} = {bound:g}: a log range needs bounds > 0")
+        if len(errors) > before:
+            return None
+    if step is not None:
+        return _step_values(start, stop, step, field, errors)
+    assert num is not None
+    if start == stop and num > 1:
+        errors.add(
+            f"{field}.num",
+            f"start = stop = {start:g} with num = {num}: the values would repeat; give num = 1 or two bounds",
+        )
+        return None
+    values = np.geomspace(start, stop, num) if scale == "log" else np.linspace(start, stop, num)
+    return values.tolist()
+
+
 def _parameter_value(
     value: Any, field: str, errors: _Errors, allow_sweep: bool = True
 ) -> float | list[float] | None:
-    """A number or a non-empty list of distinct numbers, or ``None`` on error."""
-    if isinstance(value, list):
-        if not allow_sweep:
-            errors.add(field, "a sweep (list) belongs in [parameters]")
-            return None
+    """A number, or a sweep: a non-empty list of distinct numbers or a range table; ``None`` on error."""
+    if isinstance(value, (list, dict)) and not allow_sweep:
+        errors.add(field, f"a sweep ({'list' if isinstance(value, list) else 'range'}) belongs in [parameters]")
+        return None
+    values: list[float] | None
+    if isinstance(value, dict):
+        values = _range_values(value, field, errors)
+    elif isinstance(value, list):
         if not value:
             errors.add(field, "an empty sweep has no cases: give at least one value, or a single number")
             return None
-        values: list[float] = []
+        values = []
         ok = True
         for k, element in enumerate(value, start=1):
             if isinstance(element, list):
@@ -535,16 +646,17 @@ def _parameter_value(
                 values.append(number)
         if not ok:
             return None
-        duplicated = sorted({v for v in values if values.count(v) > 1})
-        if duplicated:
-            errors.add(
-                field,
-                f"value(s) {', '.join(f'{v:g}' for v in duplicated)} appear more than once in the sweep; "
-                "give each value once",
-            )
-            return None
-        return values
-    return _number(value, field, errors)
+    else:
+        return _number(value, field, errors)
+    if values is None:
+        return None
+    duplicated = _duplicates(values)
+    if duplicated:
+        shown = ", ".join(f"{v:g}" for v in duplicated[:5])
+        shown += f" (and {len(duplicated) - 5} more)" if len(duplicated) > 5 else ""
+        errors.add(field, f"value(s) {shown} appear more than once in the sweep; give each value once")
+        return None
+    return values
 
 
 def _validate_range(value: float | list[float], spec: ParameterSpec, field: str, errors: _Errors) -> bool:

@@ -1,0 +1,130 @@
+"""Stability indicators along the paths of a few cases: det K, Hill's eigenvalue, d2W.
+
+The normalised second-order work along the path, d2W = dF . dDelta /
+(|dF| |dDelta|) (the cosine of the angle between the force and displacement
+increments), jumps where the path's direction in force space turns back: at
+a limit point (dF reverses under displacement control) and where one loading
+stage hands over to the next.  Its line is broken there, and no event marker
+is drawn on a jump (the value there is not defined).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import xarray as xr
+from matplotlib import rc_context
+from matplotlib.figure import Figure
+
+from ncstab.plotting.cases import Case, CaseEvent
+from ncstab.plotting.curves import curves_context, figure_title, mark_events, new_figure, set_limits
+from ncstab.plotting.legend import Legend
+from ncstab.plotting.style import AXIS_LABELS, RC_PARAMS
+
+__all__ = ["D2W_EXPLANATION", "d2w_line", "stability_curves_figure"]
+
+#: What the third panel shows, written on it.
+D2W_EXPLANATION = (
+    r"$d^2W = dF\cdot d\Delta\,/\,(|dF|\,|d\Delta|)$ along the path, in $[-1, 1]$;"
+    "\nbroken where it jumps (a limit point: dF turns back; a new stage)"
+)
+
+
+def _det_at_event(case: Case, event: CaseEvent) -> float:
+    return float(np.linalg.det(event.K)) if np.isfinite(event.K).all() else np.nan
+
+
+def _hill_at_event(case: Case, event: CaseEvent) -> float:
+    if not np.isfinite(event.K).all():
+        return np.nan
+    return float(np.linalg.eigvalsh((event.K + event.K.T) / 2)[0])
+
+
+def _jumps(case: Case) -> np.ndarray:
+    """Indices k such that d2W jumps between stored states k - 1 and k: the stage changes,
+    or a located limit point lies between them with d2W changing sign."""
+    if case.n_steps < 2:
+        return np.empty(0, dtype=int)
+    stage_change = np.flatnonzero(np.diff(case.stage) != 0) + 1
+    limit = case.events.get("limit_point")
+    across = np.empty(0, dtype=int)
+    if limit is not None and np.isfinite(limit.s):
+        k = np.flatnonzero((case.s[:-1] <= limit.s) & (limit.s <= case.s[1:])) + 1
+        across = k[case.d2W[k - 1] * case.d2W[k] < 0]
+    return np.union1d(stage_change, across).astype(int)
+
+
+def d2w_line(case: Case) -> tuple[np.ndarray, np.ndarray]:
+    """(Delta1*, d2W) of a case with NaN inserted at each jump (the line breaks there)."""
+    jumps = _jumps(case)
+    return np.insert(case.u[:, 0], jumps, np.nan), np.insert(case.d2W, jumps, np.nan)
+
+
+def _second_order_work_at_event(case: Case, event: CaseEvent) -> float:
+    """d2W at the event, interpolated in arclength between the stored states around it;
+    NaN where it jumps there (no marker on a jump) or the event is outside the path."""
+    keep = np.isfinite(case.s) & np.isfinite(case.d2W)
+    s, values = case.s[keep], case.d2W[keep]
+    if s.size < 2 or not np.isfinite(event.s) or not s[0] <= event.s <= s[-1]:
+        return np.nan
+    k = int(np.clip(np.searchsorted(s, event.s), 1, s.size - 1))
+    if values[k - 1] * values[k] < 0:
+        return np.nan
+    return float(np.interp(event.s, s, values))
+
+
+#: Panels of the stability figure: variable, its value at a located event.
+STABILITY_PANELS: tuple[tuple[str, Callable[[Case, CaseEvent], float]], ...] = (
+    ("det_K", _det_at_event),
+    ("hill", _hill_at_event),
+    ("d2W", _second_order_work_at_event),
+)
+
+
+def stability_curves_figure(dataset: xr.Dataset, figure: Figure | None = None) -> Figure:
+    """Three stacked panels against Delta1*: det K, the smallest eigenvalue of K_sym, d2W.
+
+    Each with its zero line and the located events; in the pure-shear limit
+    (rigid normal) K is not defined and the panels say so.
+    """
+    with rc_context(RC_PARAMS):
+        context = curves_context(dataset)
+        fig = new_figure(figure)
+        panels = fig.subplots(len(STABILITY_PANELS), 1, sharex=True)
+        legend = Legend(title=context.legend_title)
+        listed: set[int] = set()
+        for axes, (name, at_event) in zip(panels, STABILITY_PANELS):
+            drawn = False
+            for k, case in enumerate(context.cases):
+                values = getattr(case, name)
+                if not np.isfinite(values).any():
+                    continue
+                x, y = d2w_line(case) if name == "d2W" else (case.u[:, 0], values)
+                (line,) = axes.plot(x, y, label=case.label, gid=f"path:{case.label}",
+                                    **context.path_style(k, overlaid=False))
+                if k not in listed:
+                    legend.curve(line, context.labels[k])
+                    listed.add(k)
+                mark_events(axes, context, legend, k,
+                            lambda e, case=case, at_event=at_event: (e.u[0], at_event(case, e)))
+                drawn = True
+            axes.set_ylabel(AXIS_LABELS[name])
+            if drawn:
+                axes.axhline(0.0, color="k", linewidth=0.8, zorder=1)
+                if name == "d2W":
+                    axes.set_ylim(-1.1, 1.1)
+                    axes.set_title(D2W_EXPLANATION, fontsize=7.5, loc="left", color="0.25")
+            else:
+                note = ("not defined in the pure-shear limit" if context.rigid
+                        else "not available (no finite values)")
+                axes.text(0.5, 0.5, note, transform=axes.transAxes, ha="center", va="center",
+                          color="0.3", gid="note")
+                axes.set_yticks([])
+                axes.grid(False, axis="y")
+        if not listed:
+            set_limits(panels[-1], [case.u[:, 0] for case in context.cases], [])
+        panels[-1].set_xlabel(AXIS_LABELS["D1"])
+        fig.suptitle(figure_title(dataset, "stability", width=80), fontsize=10)
+        legend.draw(fig, panels[0], place="below")  # the right side would collide with the title
+    return fig
