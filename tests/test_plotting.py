@@ -406,7 +406,7 @@ def test_d2w_is_explained_broken_where_it_jumps_and_not_marked_there(preloaded):
     drawn = ~np.isnan(y)
     # Every stored value is drawn, in order; the line breaks (a NaN) at each jump.
     np.testing.assert_array_equal(y[drawn], case["d2W"].values)
-    np.testing.assert_array_equal(x[drawn], case["u"].sel(dof=1).values)
+    np.testing.assert_array_equal(x[drawn], case["u"].sel(dof="D1").values)
     breaks = np.flatnonzero(~drawn) - np.arange((~drawn).sum())  # index of the state after each break
     stage, s, d2w = case["stage"].values, case["s"].values, case["d2W"].values
     limit = float(case["limit_point_s"])
@@ -424,10 +424,10 @@ def test_d2w_is_explained_broken_where_it_jumps_and_not_marked_there(preloaded):
 
 def test_a_path_past_the_maximum_of_alpha_is_coloured_by_branch_of_eq48(fold):
     case = case_data(fold, "mcnamara")
-    alpha, F1 = case["alpha"].values, case["F"].sel(dof=1).values
+    alpha, F1 = case["alpha"].values, case["F"].sel(dof="D1").values
     k = int(np.argmax(alpha))
     assert 0 < k < alpha.size - 1  # the path passes the maximum of alpha
-    for plot, x_of in ((plot_load_rotation, alpha), (plot_load_displacement, case["u"].sel(dof=1).values)):
+    for plot, x_of in ((plot_load_rotation, alpha), (plot_load_displacement, case["u"].sel(dof="D1").values)):
         axes = plot(fold).axes[0]
         (minus,) = lines_with(axes, "path:-:")
         (plus,) = lines_with(axes, "path:+:")
@@ -477,7 +477,7 @@ def test_cundall_strack_and_mcnamara_coincide_in_pure_shear_and_both_show(pure_s
     # laws at different arclengths, so their stored states differ).
     for law in ("cundall_strack", "mcnamara"):
         case = case_data(pure_shear, law)
-        alpha, F1 = case["alpha"].values, case["F"].sel(dof=1).values
+        alpha, F1 = case["alpha"].values, case["F"].sel(dof="D1").values
         first = alpha < float(pure_shear_blocking_alpha(ALPHA0, "rotational")) - 1e-9
         np.testing.assert_allclose(
             F1[first], pure_shear_load_rotation(alpha[first], ALPHA0, 0.0, "rotational"), rtol=0, atol=1e-9

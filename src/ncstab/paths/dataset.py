@@ -63,7 +63,7 @@ def _members(result: "PathResult") -> dict[str, tuple[str, tuple[str, ...]]]:
     return out
 
 
-def path_dataset(result: "PathResult", directions: int | None = None) -> "xarray.Dataset":
+def path_dataset(result: "PathResult", directions: int | None = None, spectrum: bool = False) -> "xarray.Dataset":
     """The labelled Dataset of a :class:`~ncstab.paths.result.PathResult` (see its ``to_dataset``)."""
     import xarray as xr
 
@@ -125,6 +125,12 @@ def path_dataset(result: "PathResult", directions: int | None = None) -> "xarray
     has_load = result.model.definition.load is not None
     if has_load:
         data["load"] = (step_dims, stacked("load"))
+    if spectrum:
+        if result.model.definition.mass is None:
+            raise ValueError(f"system {result.model.definition.name!r} declares no inertia: it has no dynamic spectrum")
+        roots = _spectrum(result, stacked("u"), K)
+        data["spectrum_re"] = (step_dims + ["root"], roots.real)
+        data["spectrum_im"] = (step_dims + ["root"], roots.imag)
     if "branch_index" in result.results[0].steps:
         data["branch_index"] = (step_dims, stacked("branch_index").astype(np.int32))
     if directions is not None:
@@ -233,6 +239,24 @@ def _dynamic_matrices(result: "PathResult", u: np.ndarray, K: np.ndarray, critic
     return out.reshape(u.shape[:-1])
 
 
+def _spectrum(result: "PathResult", u: np.ndarray, K: np.ndarray) -> np.ndarray:
+    """The 2n roots of det(M(u) s^2 + C s + K) at every stored state (NaN padding kept)."""
+    from ncstab.operators.dynamics import dynamic_spectrum
+    from ncstab.systems.compile import compile_system
+
+    compiled = compile_system(result.model.definition)
+    n = u.shape[-1]
+    flat_u, flat_K = u.reshape(-1, n), K.reshape(-1, n, n)
+    finite = np.isfinite(flat_K).all(axis=(-2, -1)) & np.isfinite(flat_u).all(axis=-1)
+    out = np.full((flat_u.shape[0], 2 * n), np.nan + 0j)
+    if finite.any():
+        parameters = tuple(p[finite] for p in _case_parameters(result, u.shape[len(result.shape):-1]))
+        mass = compiled.mass(flat_u[finite], parameters)
+        damping = compiled.damping(flat_u[finite], parameters)
+        out[finite] = dynamic_spectrum(mass, damping, flat_K[finite])
+    return out.reshape(u.shape[:-1] + (2 * n,))
+
+
 def _flutter(result: "PathResult", u: np.ndarray, K: np.ndarray) -> np.ndarray:
     """The ``flutter`` variable: max Re s of the system's dynamics, or the discriminant
     of K for a system without inertia."""
@@ -311,9 +335,19 @@ def _attributes(result: "PathResult") -> dict:
     if definition.load is not None:
         attrs["load_parameter"] = definition.load.parameter
         attrs["load_kind"] = definition.load.kind
+    attrs["stage_drives"] = "; ".join(_stage_drives(stage) for stage in result.programme.stages)
     for name, value in result.grid.fixed.items():
         attrs[f"parameter_{name}"] = value
     return attrs
+
+
+def _stage_drives(stage) -> str:
+    """``"D_top,D_bottom"`` (the driven quantities), ``"cycle:D1,D2"`` (a cycle's plane)."""
+    from ncstab.paths.programme import CycleStage
+
+    if isinstance(stage, CycleStage):
+        return "cycle:" + ",".join(stage.dofs)
+    return ",".join(stage.drive)
 
 
 def parameter_attributes(name: str, result: "PathResult | None" = None) -> dict[str, str]:

@@ -107,7 +107,7 @@ class PathResult:
         flat = int(np.ravel_multi_index(index, self.grid.shape)) if index else 0
         return result, flat
 
-    def to_dataset(self, directions: int | None = None) -> "xarray.Dataset":
+    def to_dataset(self, directions: int | None = None, spectrum: bool = False) -> "xarray.Dataset":
         """The labelled Dataset of ARCHITECTURE.md ("Dataset of a study").
 
         Dimensions: ``law``, the swept parameters in order, then ``step``,
@@ -124,10 +124,13 @@ class PathResult:
             [0, pi) (d2W is pi-periodic), and per step the unstable cone
             ``cone_width``, ``cone_lower``, ``cone_upper`` (exact roots).
             Two-dof systems only.
+        spectrum
+            Add the dynamic spectrum at every state, ``spectrum_re`` and
+            ``spectrum_im`` (dims ..., step, root), for a system with inertia.
         """
         from ncstab.paths.dataset import path_dataset
 
-        return path_dataset(self, directions)
+        return path_dataset(self, directions, spectrum)
 
     def law_definition(self, name: str):
         """The definition of one of :attr:`laws` (a catalogue law or a user law)."""

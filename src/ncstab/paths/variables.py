@@ -47,6 +47,8 @@ VARIABLES: dict[str, tuple[str, str, str]] = {
     "theta": ("rad", "spring rotation theta", "relative rotation across each rotational spring"),
     "moment": ("1", "spring moment", "moment of each rotational spring, in units of its stiffness (k or C)"),
     "branch_index": ("1", "branch of each state", "0 on the path followed from the start; +1 or -1 once the case has left a simple bifurcation point along the bifurcating branch, that way (at_bifurcation = \"switch\" or \"branches\")"),
+    "spectrum_re": ("1", "real part of the dynamic spectrum", "Re s of the 2n roots of det(M s^2 + C s + K) = 0 at each state, sorted by imaginary part then real part ([output] spectrum = true)"),
+    "spectrum_im": ("1", "imaginary part of the dynamic spectrum", "Im s of the 2n roots of det(M s^2 + C s + K) = 0 at each state, in the order of spectrum_re"),
     "accepted_steps": ("1", "accepted integrator steps", "accepted arclength steps of the case"),
     "rejected_steps": ("1", "rejected integrator steps", "steps rejected by error control or Newton projection"),
 }
@@ -81,7 +83,7 @@ MEMBER_DIMENSIONS = ("contact", "spring")
 #: Names a study parameter may not take: dimensions, coordinates and variables
 #: of the Dataset, and words of the study syntax.
 RESERVED_NAMES = frozenset(
-    {"law", "law_class", "step", "dof", "force", "i", "j", "cycle", "cycle_stage", "cycle_direction", "theta",
+    {"law", "law_class", "step", "dof", "force", "i", "j", "root", "cycle", "cycle_stage", "cycle_direction", "theta",
      "current", "pi", "e", CASE_DIMENSION, "map_D1", "map_D2", *MEMBER_DIMENSIONS}
     | set(VARIABLES)
     | {f"{event}_{suffix}" for event in (

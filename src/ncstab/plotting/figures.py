@@ -37,6 +37,8 @@ from ncstab.plotting.maps import (
     state_map_figure,
 )
 from ncstab.plotting.parameter_plane import parameter_plane_figure
+from ncstab.plotting.dynamics import damping_map_figure, frequencies_figure, root_locus_figure
+from ncstab.plotting.model_paths import is_seed_diamond, model_path_figure
 from ncstab.plotting.stability_curves import stability_curves_figure
 from ncstab.plotting.sweep_shape import sweep_shape
 
@@ -71,7 +73,12 @@ def plot_load_rotation(dataset: xr.Dataset, figure: Figure | None = None) -> Fig
         Up to 12 cases: one axes, a curve per case, its events, closed-form
         overlays (dashed), alpha in rad below and in degrees above.  More: the
         parameter plane of alpha (2-D sweeps) or the fan of the curves.
+        Another system than the seed's diamond: the load (or the driven
+        force) against its first interaction angle
+        (:func:`ncstab.plotting.model_paths.model_path_figure`).
     """
+    if not is_seed_diamond(dataset):
+        return model_path_figure(dataset, figure, "load_rotation")
     layout = sweep_shape(dataset).layout
     if layout == "parameter_plane":
         return parameter_plane_figure(dataset, "load_rotation", figure)
@@ -87,8 +94,12 @@ def plot_load_displacement(dataset: xr.Dataset, figure: Figure | None = None) ->
     -------
     Figure
         As :func:`plot_load_rotation` with Delta1* on x; the parameter plane
-        of a large 2-D sweep is that of F1*.
+        of a large 2-D sweep is that of F1*.  Another system than the seed's
+        diamond: axes chosen from what the stages drive, branches and the
+        stability of each state (:mod:`ncstab.plotting.model_paths`).
     """
+    if not is_seed_diamond(dataset):
+        return model_path_figure(dataset, figure, "load_displacement")
     layout = sweep_shape(dataset).layout
     if layout == "parameter_plane":
         return parameter_plane_figure(dataset, "load_displacement", figure)
@@ -154,4 +165,7 @@ FIGURE_KINDS: dict[str, Callable[..., Figure]] = {
     "second_order_work_map": second_order_work_map_figure,
     "second_order_work_polar": second_order_work_polar_figure,
     "state_map": state_map_figure,
+    "root_locus": root_locus_figure,
+    "frequencies": frequencies_figure,
+    "damping_map": damping_map_figure,
 }

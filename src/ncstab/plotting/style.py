@@ -50,6 +50,7 @@ RC_PARAMS: dict[str, object] = {
 
 #: Law names as a reader of the seed knows them.
 LAW_NAMES: dict[str, str] = {
+    "linear_spring": "linear springs",
     "cundall_strack": "Cundall–Strack (hypoelastic)",
     "weakly_hypoelastic": "weakly hypoelastic",
     "mcnamara": "McNamara et al. 2008 (hyperelastic)",
@@ -61,6 +62,11 @@ MODIFIER_NAMES: dict[str, str] = {"no_tension": "no tension"}
 
 #: Swept-parameter names as symbols.
 PARAMETER_SYMBOLS: dict[str, str] = {
+    "b1": r"$b_1$",
+    "b2": r"$b_2$",
+    "m1": r"$m_1$",
+    "m2": r"$m_2$",
+    "branch": "branch",
     "gamma": r"$\gamma$",
     "alpha0": r"$\alpha_0$",
     "kappa": r"$\kappa$",
@@ -96,6 +102,8 @@ EVENT_MARKERS: dict[str, tuple[str, float, bool, str]] = {
     "turning_point": ("v", 9.0, False, "turning point"),
     "secondary_contact": ("x", 8.0, False, "secondary contact"),
     "flutter_onset": ("*", 11.0, True, "flutter onset"),
+    "bifurcation": ("D", 8.0, True, "bifurcation point"),
+    "divergence": ("P", 9.0, True, "divergence"),
 }
 
 #: Cases of one law from which colours follow a colormap.

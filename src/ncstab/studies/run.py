@@ -64,7 +64,7 @@ def study_dataset(study: Study, path: "PathResult") -> xr.Dataset:
     in the on-disk representation.
     """
     study_map = study.map
-    dataset = path.to_dataset(directions=study_map.directions if study_map else None)
+    dataset = path.to_dataset(directions=study_map.directions if study_map else None, spectrum=study.spectrum)
     if study_map is not None and study_map.grid is not None:
         dataset = add_state_maps(dataset, path, study_map.grid)
     dataset.attrs.update(

@@ -63,6 +63,9 @@ FIGURE_KINDS = (
     "second_order_work_map",
     "second_order_work_polar",
     "state_map",
+    "root_locus",
+    "frequencies",
+    "damping_map",
 )
 #: Figures drawn when ``[output] figures`` is not given.
 DEFAULT_FIGURES = ("load_displacement", "load_rotation")
@@ -73,7 +76,9 @@ _SYSTEM_SETTINGS = ("name", "secondary_contacts", "normal")
 _ALL_SETTINGS = ("reduction", "grains", "links", "load")
 _STAGE_KEYS = ("hold", "drive", "stop_at", "cycle", "at_bifurcation")
 _CYCLE_KEYS = ("center", "turns", "direction", "dofs")
-_OUTPUT_KEYS = ("figures", "file")
+_OUTPUT_KEYS = ("figures", "file", "spectrum")
+#: Figure kinds drawn from the dynamic spectrum (which they store).
+SPECTRUM_FIGURES = ("root_locus", "frequencies")
 _MAP_KEYS = ("directions", "grid")
 _GRID_KEYS = ("D1", "D2")
 _STUDY_KEYS = ("name", "description")
@@ -174,6 +179,7 @@ class Study:
     figures: tuple[str, ...] = DEFAULT_FIGURES
     output: str | None = None
     map: "StudyMap | None" = None
+    spectrum: bool = False
     user_laws: tuple[LawDefinition, ...] = ()
 
     def law_definition(self, name: str) -> LawDefinition:
@@ -1071,6 +1077,23 @@ def _check_references(
             )
 
 
+def _spectrum_option(data: Mapping[str, Any], errors: _Errors, figures: tuple[str, ...], system: Any) -> bool:
+    """``[output] spectrum``: store the dynamic spectrum at every state (a system with
+    inertia); on by default where a figure draws it."""
+    table = data.get("output") if isinstance(data.get("output"), dict) else {}
+    wanted = any(kind in SPECTRUM_FIGURES for kind in figures)
+    value = table.get("spectrum", wanted)
+    if not isinstance(value, bool):
+        errors.add("output.spectrum", f"expected true or false, got {_toml_type(value)} ({value!r})")
+        return False
+    if wanted and not value:
+        errors.add("output.spectrum", f"figure kinds {', '.join(SPECTRUM_FIGURES)} draw the spectrum: it cannot be false")
+    if value and isinstance(system, SystemSpec) and system.definition.mass is None:
+        errors.add("output.spectrum", f"system {system.name!r} declares no inertia: it has no dynamic spectrum")
+        return False
+    return value
+
+
 def _check_law_kinds(errors: _Errors, definitions: Sequence[Any], system: SystemSpec) -> None:
     """Every law fits an interaction of the system; a system that needs a law has one."""
     families = system.definition.families
@@ -1150,6 +1173,7 @@ def parse_study(text: str, path: str | None = None) -> Study:
     options = _options_section(data, errors)
     study_map = _map_section(data, errors)
     figures, output = _output_section(data, errors)
+    spectrum = _spectrum_option(data, errors, figures, system)
 
     if programme is not None and programme.follows_branches:
         from ncstab.paths.api import with_branches
@@ -1170,6 +1194,7 @@ def parse_study(text: str, path: str | None = None) -> Study:
         programme=programme,
         options=options,
         figures=figures,
+        spectrum=spectrum,
         output=output,
         map=study_map,
         user_laws=tuple(user_laws.values()),

@@ -1,0 +1,160 @@
+"""Figures of dynamic stability: the root locus, the frequencies, the damping map.
+
+Drawn from a Dataset alone: the spectrum stored along the paths
+(``spectrum_re``, ``spectrum_im``: ``[output] spectrum = true``) and the located
+``flutter_onset_load`` over a sweep of the dashpots (b1, b2).
+
+* ``root_locus``: the roots s of det(M s^2 + C s + K) in the complex plane,
+  coloured by the load: a pair meets and leaves the imaginary axis at the
+  flutter onset (the onset marked).
+* ``frequencies``: Im s >= 0 against the load: two frequencies coalesce at
+  an undamped flutter onset; states with Re s > 0 drawn thick.
+* ``damping_map``: the critical load over the plane of the dashpots (b1, b2),
+  and along the diagonal b1 = b2 against the damping b, with the undamped
+  flutter load and the vanishing-damping limit (Ziegler's destabilization
+  paradox: the limit lies below the undamped load).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import xarray as xr
+from matplotlib import rc_context
+from matplotlib.colors import Normalize
+from matplotlib.figure import Figure
+
+from ncstab.plotting.style import FIGURE_SIZE, RC_PARAMS
+from ncstab.plotting.sweep_shape import sweep_shape
+
+__all__ = ["damping_map_figure", "frequencies_figure", "root_locus_figure"]
+
+#: Cases drawn by the spectrum figures (one panel each).
+MAX_PANELS = 4
+
+
+def _require(dataset: xr.Dataset, names: tuple[str, ...], kind: str) -> None:
+    missing = [name for name in names if name not in dataset]
+    if missing:
+        raise ValueError(
+            f"figure {kind!r} needs {', '.join(missing)} in the Dataset: a system with inertia and a load "
+            "parameter, with [output] spectrum = true"
+        )
+
+
+def _cases(dataset: xr.Dataset) -> list[dict]:
+    shape = sweep_shape(dataset)
+    return [dict(zip(shape.dims, p)) for p in np.ndindex(*[shape.sizes[d] for d in shape.dims])][:MAX_PANELS]
+
+
+def _panel_title(dataset: xr.Dataset, index: dict) -> str:
+    parts = [f"{name} = {dataset[name].values[value]:.4g}" for name, value in index.items() if name != "law"]
+    return ", ".join(parts) or str(dataset.attrs.get("study_description", ""))
+
+
+def _spectrum(dataset: xr.Dataset, index: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    n = int(dataset["n_steps"].isel(index))
+    load = dataset["load"].isel(index).values[:n]
+    return load, dataset["spectrum_re"].isel(index).values[:n], dataset["spectrum_im"].isel(index).values[:n]
+
+
+def root_locus_figure(dataset: xr.Dataset, figure: Figure | None = None) -> Figure:
+    """Re s against Im s of every root along the path, coloured by the load, per case."""
+    _require(dataset, ("spectrum_re", "spectrum_im", "load"), "root_locus")
+    cases = _cases(dataset)
+    with rc_context(RC_PARAMS):
+        figure = figure if figure is not None else Figure(figsize=FIGURE_SIZE, layout="constrained")
+        panels = figure.subplots(1, len(cases), squeeze=False)[0]
+        loads = dataset["load"].values
+        norm = Normalize(np.nanmin(loads), np.nanmax(loads))
+        for axes, index in zip(panels, cases):
+            load, real, imag = _spectrum(dataset, index)
+            points = axes.scatter(
+                real.ravel(), imag.ravel(), c=np.repeat(load, real.shape[-1]), norm=norm, cmap="viridis", s=6,
+                gid="roots",
+            )
+            onset = float(dataset["flutter_onset_load"].isel(index)) if "flutter_onset_load" in dataset else np.nan
+            if np.isfinite(onset):
+                k = int(np.nanargmin(np.abs(load - onset)))
+                axes.plot(real[k], imag[k], "*", color="k", markersize=10, linestyle="none", gid="event:flutter_onset",
+                          label=f"flutter onset, P = {onset:.4g}")
+                axes.legend(loc="lower left")
+            axes.axvline(0.0, color="0.3", linewidth=0.8)
+            axes.set_xlabel("Re s")
+            axes.set_title(_panel_title(dataset, index), fontsize=9)
+        panels[0].set_ylabel("Im s")
+        figure.colorbar(points, ax=list(panels), label=f"load {dataset.attrs.get('load_parameter', 'P')}")
+        figure.suptitle("Root locus of det(M s² + C s + K) along the path")
+    return figure
+
+
+def frequencies_figure(dataset: xr.Dataset, figure: Figure | None = None) -> Figure:
+    """The frequencies Im s >= 0 against the load; thick where Re s > 0 (unstable)."""
+    _require(dataset, ("spectrum_re", "spectrum_im", "load"), "frequencies")
+    cases = _cases(dataset)
+    with rc_context(RC_PARAMS):
+        figure = figure if figure is not None else Figure(figsize=FIGURE_SIZE, layout="constrained")
+        panels = figure.subplots(1, len(cases), squeeze=False, sharey=True)[0]
+        for axes, index in zip(panels, cases):
+            load, real, imag = _spectrum(dataset, index)
+            upper = imag >= 0
+            frequency = np.where(upper, imag, np.nan)
+            growing = np.where(upper & (real > 1e-9), imag, np.nan)
+            for root in range(frequency.shape[-1]):
+                axes.plot(load, frequency[:, root], ".", color="C0", markersize=2.5, gid="frequency")
+                axes.plot(load, growing[:, root], ".", color="C3", markersize=4.0, gid="unstable")
+            onset = float(dataset["flutter_onset_load"].isel(index)) if "flutter_onset_load" in dataset else np.nan
+            if np.isfinite(onset):
+                axes.axvline(onset, color="k", linewidth=0.8, linestyle=(0, (4, 2.5)), gid="event:flutter_onset")
+                axes.annotate(f"flutter onset\nP = {onset:.4g}", (onset, 0.02), xycoords=("data", "axes fraction"),
+                              xytext=(4, 0), textcoords="offset points", fontsize=8)
+            axes.set_xlabel(f"load {dataset.attrs.get('load_parameter', 'P')}")
+            axes.set_title(_panel_title(dataset, index), fontsize=9)
+        panels[0].set_ylabel("frequency Im s ≥ 0 (red: Re s > 0)")
+        figure.suptitle("Frequencies of M s² + C s + K along the path")
+    return figure
+
+
+def damping_map_figure(dataset: xr.Dataset, figure: Figure | None = None) -> Figure:
+    """The flutter load over the dashpots (b1, b2), and along b1 = b2 against b.
+
+    The undamped flutter load (a case with b1 = b2 = 0 where the sweep has
+    one, else the dataset's ``flutter_onset_undamped`` attribute) is drawn as
+    a line: a vanishing damping does not tend to it.
+    """
+    _require(dataset, ("flutter_onset_load",), "damping_map")
+    for name in ("b1", "b2"):
+        if name not in dataset.dims:
+            raise ValueError("figure 'damping_map' needs a sweep over both dashpots b1 and b2")
+    field = dataset["flutter_onset_load"].isel(law=0).transpose("b2", "b1")
+    b1, b2 = dataset["b1"].values, dataset["b2"].values
+    positive = bool((b1 > 0).all() and (b2 > 0).all())
+    undamped = float(dataset.attrs.get("flutter_onset_undamped", np.nan))
+    if not positive:
+        zero = field.sel(b1=0.0, b2=0.0) if (0.0 in b1 and 0.0 in b2) else None
+        undamped = float(zero) if zero is not None else undamped
+    with rc_context(RC_PARAMS):
+        figure = figure if figure is not None else Figure(figsize=(FIGURE_SIZE[0] * 1.6, FIGURE_SIZE[1]), layout="constrained")
+        plane, diagonal = figure.subplots(1, 2)
+        mesh = plane.pcolormesh(b1, b2, field.values, shading="nearest", cmap="magma", gid="critical_load")
+        if positive:
+            plane.set_xscale("log")
+            plane.set_yscale("log")
+        figure.colorbar(mesh, ax=plane, label="flutter onset load P")
+        plane.set_xlabel(r"$b_1$ (base dashpot)")
+        plane.set_ylabel(r"$b_2$ (middle dashpot)")
+        plane.set_title("critical load over the damping plane")
+        common = np.intersect1d(b1, b2)
+        common = common[common > 0]
+        if common.size:
+            along = np.array([float(field.sel(b1=b, b2=b)) for b in common])
+            diagonal.plot(common, along, "o-", markersize=3, gid="diagonal", label="damped, b₁ = b₂ = b")
+            diagonal.set_xscale("log")
+        if np.isfinite(undamped):
+            diagonal.axhline(undamped, color="C3", linestyle=(0, (4, 2.5)), gid="undamped",
+                             label=f"undamped: P = {undamped:.4g}")
+        diagonal.set_xlabel("damping b")
+        diagonal.set_ylabel("flutter onset load P")
+        diagonal.set_title("the destabilization paradox (b → 0)")
+        diagonal.legend(loc="center right")
+        figure.suptitle(str(dataset.attrs.get("study_description", "Flutter load over the damping")))
+    return figure
