@@ -54,8 +54,8 @@ def law_definition(name: str) -> LawDefinition:
     Raises
     ------
     ValueError
-        For an unknown law or modifier; the message lists the catalogue and a
-        close match when there is one.
+        For an unknown law or modifier (the message lists the catalogue and a
+        close match when there is one), or a modifier given twice.
     """
     if not isinstance(name, str) or not name.strip():
         raise ValueError(f"law name must be a non-empty string, got {name!r}; {_catalogue_text()}")
@@ -65,11 +65,16 @@ def law_definition(name: str) -> LawDefinition:
         hint = f" (did you mean {close[0]!r}?)" if close else ""
         raise ValueError(f"unknown law {base!r}{hint}; {_catalogue_text()}")
     definition = LAWS[base]
-    for modifier in modifiers:
+    for k, modifier in enumerate(modifiers):
         if modifier not in MODIFIERS:
             close = difflib.get_close_matches(modifier, MODIFIERS, n=1)
             hint = f" (did you mean {close[0]!r}?)" if close else ""
             raise ValueError(f"unknown law modifier {modifier!r} in {name!r}{hint}; {_catalogue_text()}")
+        if modifier in modifiers[:k]:
+            raise ValueError(
+                f"modifier {modifier!r} is given twice in {name!r}: a modifier applies once "
+                f"(write {'+'.join([base, *dict.fromkeys(modifiers)])!r})"
+            )
         definition = MODIFIERS[modifier](definition)
     return definition
 
