@@ -164,7 +164,7 @@ def read_part(directory: FilePath, chunk: Chunk, digest: str) -> EncodedChunk:
     import xarray as xr
 
     path = directory / chunk.file_name
-    with np.load(path, allow_pickle=False) as stored:
+    with open(path, "rb") as handle, np.load(handle, allow_pickle=False) as stored:  # closed even if damaged
         header = json.loads(str(stored["header"]))
         if header["study_sha256"] != digest:
             raise ResumeError("part", f"{path} belongs to another study")

@@ -187,11 +187,13 @@ def size_estimate(study: Study) -> SizeEstimate:
 
 
 def free_disk(path: str | os.PathLike[str]) -> int | None:
-    """Free bytes for this user on the file system of ``path``, or None if unknown."""
+    """Free bytes for this user on the file system of ``path``, or None if unknown
+    (a pseudo file system such as /proc or /sys reports a size of 0)."""
     try:
-        return shutil.disk_usage(path).free
+        usage = shutil.disk_usage(path)
     except OSError:
         return None
+    return usage.free if usage.total > 0 else None
 
 
 def available_memory() -> int | None:

@@ -1,0 +1,891 @@
+"""The fault catalogue: bad inputs and faults, each ending in one line and a documented exit code.
+
+Every case asserts the exit code (0 success, 1 some case failed, 2 invalid input
+with nothing run or written, 3 the run could not complete: docs/when-things-go-wrong.md),
+exactly one line on stderr naming what is wrong, no "Traceback", and what is
+left on disk.  The command runs in this process (``ncstab.cli.main``) except
+where the fault needs a process of its own (``test_faults_processes.py``:
+signals to a process group, a killed run, a real dask scheduler, another user).
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+import xarray as xr
+from fault_helpers import (
+    FOUR,
+    TINY,
+    assert_one_line,
+    chunk_offset,
+    contiguous_offset,
+    copy_archive,
+    edit_archive,
+    flip_byte,
+    run_cli,
+    tree,
+    write_study,
+)
+
+import ncstab.studies.chunked as chunked_module
+from ncstab.studies import open_study, parse_study, run_study, write_dataset
+from ncstab.studies import preflight as preflight_module
+from ncstab.studies.locks import OutputLock, lock_path
+
+
+@pytest.fixture(autouse=True)
+def _no_full_collection_per_chunk(monkeypatch):
+    """A chunked run calls gc.collect() after each chunk to hold one chunk at a time (memory,
+    tested in test_streaming.py); in a test process that holds sympy's objects each pass costs
+    0.3 s and tests nothing here."""
+    monkeypatch.setattr(chunked_module, "gc", type("NoCollector", (), {"collect": staticmethod(lambda: 0)}))
+
+# --- bad study files: exit 2, the field named, nothing written ------------------------------------
+
+#: (id, text replaced in TINY, its replacement, the field the one line names).
+BAD_STUDIES = [
+    ("toml-syntax", "max_step = 0.05", "max_step = = 0.05", r"toml: invalid TOML"),
+    ("toml-huge-integer", "max_step = 0.05", "max_steps = " + "9" * 5000, r"toml: .*too long"),
+    ("toml-deep-nesting", "max_step = 0.05", "max_step = " + "[" * 100_000, r"toml: .*nested too deeply"),
+    ("study-missing", '[study]\nname = "tiny"\ndescription = "fault catalogue"\n', "", r"study\.name: missing"),
+    ("study-name-slash", 'name = "tiny"', 'name = "a/b"', r"study\.name"),
+    ("study-name-number", 'name = "tiny"', "name = 3", r"study\.name: expected a string"),
+    ("study-description-number", 'description = "fault catalogue"', "description = 1", r"study\.description"),
+    ("study-unknown-key", 'name = "tiny"', 'name = "tiny"\ntitle = "x"', r"study\.title: unknown key"),
+    ("unknown-section", "[options]", "[optoins]", r"optoins: unknown section"),
+    ("key-outside-sections", "[study]", "verbose = true\n[study]", r"verbose: key 'verbose' is outside"),
+    ("system-unknown", 'alpha0 = "pi/4"', 'name = "hexagon"\nalpha0 = "pi/4"', r"system\.name: unknown system"),
+    ("system-secondary-contacts", 'secondary_contacts = "ignore"', 'secondary_contacts = "maybe"',
+     r"system\.secondary_contacts"),
+    ("system-normal", 'secondary_contacts = "ignore"', 'secondary_contacts = "ignore"\nnormal = "stiff"',
+     r"system\.normal"),
+    ("system-alpha0-range", 'alpha0 = "pi/4"', 'alpha0 = "pi/2 + 1"', r"system\.alpha0"),
+    ("system-alpha0-sweep", 'alpha0 = "pi/4"', "alpha0 = [0.6, 0.7]", r"system\.alpha0: a sweep"),
+    ("system-law-parameter", 'alpha0 = "pi/4"', 'alpha0 = "pi/4"\ngamma = 1.0', r"system\.gamma: .*law parameter"),
+    ("laws-missing", 'names = ["mcnamara"]', "", r"laws\.names: missing"),
+    ("laws-not-a-list", 'names = ["mcnamara"]', 'names = "mcnamara"', r"laws\.names: expected an array"),
+    ("laws-empty", 'names = ["mcnamara"]', "names = []", r"laws\.names: give at least one law"),
+    ("laws-unknown", 'names = ["mcnamara"]', 'names = ["mcnamra"]', r"laws\.names: unknown law .*did you mean"),
+    ("laws-listed-twice", 'names = ["mcnamara"]', 'names = ["mcnamara", "mcnamara"]', r"laws\.names: .*twice"),
+    ("laws-modifier-twice", 'names = ["mcnamara"]', 'names = ["turco+no_tension+no_tension"]',
+     r"laws\.names: modifier 'no_tension' is given twice"),
+    ("laws-two-spellings", 'names = ["mcnamara"]', 'names = ["turco+no_tension", "turco + no_tension"]',
+     r"laws\.names: .*are the same law"),
+    ("laws-unknown-modifier", 'names = ["mcnamara"]', 'names = ["mcnamara+no_tensoin"]',
+     r"laws\.names: unknown law modifier"),
+    ("gamma-negative", "gamma = [0.5, 2.0]", "gamma = [-0.5, 2.0]", r"parameters\.gamma: .*>= 0"),
+    ("gamma-empty-sweep", "gamma = [0.5, 2.0]", "gamma = []", r"parameters\.gamma: an empty sweep"),
+    ("gamma-twice-in-sweep", "gamma = [0.5, 2.0]", "gamma = [0.5, 0.5]", r"parameters\.gamma: .*more than once"),
+    ("gamma-division-by-zero", "gamma = [0.5, 2.0]", 'gamma = "1/0"', r"parameters\.gamma: .*division by zero"),
+    ("gamma-infinite", "gamma = [0.5, 2.0]", "gamma = inf", r"parameters\.gamma: .*not finite"),
+    ("gamma-huge-exponent", "gamma = [0.5, 2.0]", "gamma = 1e999", r"parameters\.gamma: .*not finite"),
+    ("gamma-code-injection", "gamma = [0.5, 2.0]", "gamma = \"__import__('os').system('touch pwned')\"",
+     r"parameters\.gamma"),
+    ("gamma-nested-list", "gamma = [0.5, 2.0]", "gamma = [[0.5]]", r"parameters\.gamma: element 1 is an array"),
+    ("gamma-date", "gamma = [0.5, 2.0]", "gamma = 1979-05-27", r"parameters\.gamma: expected a number"),
+    ("gamma-missing", "gamma = [0.5, 2.0]", "", r"parameters\.gamma: missing"),
+    ("parameter-reserved", "gamma = [0.5, 2.0]", 'gamma = [0.5, 2.0]\nstep = 0.1', r"parameters\.step: .*reserved"),
+    ("parameter-unused", "gamma = [0.5, 2.0]", "gamma = [0.5, 2.0]\nspeed = 3.0", r"parameters\.speed: .*unused"),
+    ("parameter-bad-name", "gamma = [0.5, 2.0]", 'gamma = [0.5, 2.0]\n"2x" = 1.0', r"parameters\.2x: parameter name"),
+    ("kappa-negative", "gamma = [0.5, 2.0]", "gamma = [0.5, 2.0]\nkappa = -1.0", r"parameters\.kappa"),
+    ("gamma-in-pure-shear", 'secondary_contacts = "ignore"', 'secondary_contacts = "ignore"\nnormal = "rigid"',
+     r"parameters\.gamma: gamma has no meaning"),
+    ("parameter-twice", "gamma = [0.5, 2.0]", "gamma = [0.5, 2.0]\nalpha0 = 0.7", r"parameters\.alpha0: .*also given"),
+    ("loading-missing", "[[loading]]\nhold = { F2 = 0.0 }\ndrive = { D1 = 0.05 }\n", "", r"loading: missing"),
+    ("loading-a-table", "[[loading]]", "[loading]", r"loading: expected \[\[loading\]\] stages"),
+    ("stage-unknown-key", "drive = { D1 = 0.05 }", "drive = { D1 = 0.05 }\nhols = { F1 = 0.0 }",
+     r"loading\[1\]\.hols: unknown key"),
+    ("stage-drives-nothing", "drive = { D1 = 0.05 }", "", r"loading\[1\]\.drive: the stage drives nothing"),
+    ("stage-drives-two", "drive = { D1 = 0.05 }", "drive = { D1 = 0.05, D2 = 0.01 }",
+     r"loading\[1\]\.drive: the stage drives 2 quantities"),
+    ("stage-controlled-twice", "hold = { F2 = 0.0 }", "hold = { F2 = 0.0, D2 = 0.0 }",
+     r"loading\[1\]\..*controlled twice"),
+    ("stage-not-controlled", "hold = { F2 = 0.0 }", "", r"loading\[1\]\.hold: dof D2/F2 is not controlled"),
+    ("stage-unknown-quantity", "drive = { D1 = 0.05 }", "drive = { D3 = 0.05 }",
+     r"loading\[1\]\.drive\.D3: unknown quantity"),
+    ("stage-undefined-parameter", "drive = { D1 = 0.05 }", 'drive = { D1 = "D1_end" }',
+     r"loading\[1\]\.drive\.D1: refers to undefined parameter 'D1_end'"),
+    ("stage-drive-current", "drive = { D1 = 0.05 }", 'drive = { D1 = "current" }',
+     r"loading\[1\]\.drive\.D1: a driven target cannot be 'current'"),
+    ("stage-unknown-event", "drive = { D1 = 0.05 }", 'drive = { D1 = 0.05 }\nstop_at = ["hill"]',
+     r"loading\[1\]\.stop_at: unknown event 'hill' \(did you mean 'hill_loss'\?\)"),
+    ("stage-drive-to-rest", "drive = { D1 = 0.05 }", "drive = { D1 = 0.0 }",
+     r"loading\[1\]\.drive\.D1: drives D1 to 0, the value it already has \(at rest\)"),
+    ("stage-drive-to-where-it-is", "drive = { D1 = 0.05 }",
+     "drive = { D1 = 0.05 }\n[[loading]]\nhold = { F2 = 0.0 }\ndrive = { D1 = 0.05 }",
+     r"loading\[2\]\.drive\.D1: drives D1 to 0\.05, the value it already has \(where stage 1 leaves it\)"),
+    ("stage-drive-swept-to-rest", "drive = { D1 = 0.05 }", 'drive = { F1 = "F_end" }',
+     r"loading\[1\]\.drive\.F1: drives F1 to 0"),
+    ("cycle-zero-radius", "hold = { F2 = 0.0 }\ndrive = { D1 = 0.05 }", "cycle = { center = [0.0, 0.0], turns = 1 }",
+     r"loading\[1\]\.cycle\.center: .*radius 0"),
+    ("cycle-zero-turns", "hold = { F2 = 0.0 }\ndrive = { D1 = 0.05 }", "cycle = { center = [0.01, 0.0], turns = 0 }",
+     r"loading\[1\]\.cycle\.turns"),
+    ("cycle-direction", "hold = { F2 = 0.0 }\ndrive = { D1 = 0.05 }",
+     "cycle = { center = [0.01, 0.0], direction = 2 }", r"loading\[1\]\.cycle\.direction"),
+    ("cycle-with-hold", "drive = { D1 = 0.05 }", "cycle = { center = [0.01, 0.0] }",
+     r"loading\[1\]\.hold: a cycle stage drives both displacements"),
+    ("options-unknown", "max_step = 0.05", "max_stpe = 0.05", r"options\.max_stpe: unknown key .*did you mean"),
+    ("options-negative-rtol", "max_step = 0.05", "max_step = 0.05\nrtol = -1.0", r"options\.rtol"),
+    ("options-max-steps-float", "max_step = 0.05", "max_step = 0.05\nmax_steps = 2.5",
+     r"options\.max_steps: expected a whole number"),
+    ("options-max-cases-zero", "max_step = 0.05", "max_step = 0.05\nmax_cases = 0", r"options\.max_cases"),
+    ("options-max-cases-text", "max_step = 0.05", 'max_step = 0.05\nmax_cases = "many"', r"options\.max_cases"),
+    ("options-min-above-max", "max_step = 0.05", "max_step = 0.05\nmin_step = 0.1", r"options\.min_step"),
+    ("options-backend", "max_step = 0.05", 'max_step = 0.05\nbackend = "gpu"', r"options\.backend"),
+    ("map-empty", "[output]", "[map]\n[output]", r"map: an empty \[map\] section"),
+    ("map-directions-too-few", "[output]", "[map]\ndirections = 3\n[output]", r"map\.directions"),
+    ("map-directions-too-many", "[output]", "[map]\ndirections = 100001\n[output]", r"map\.directions"),
+    ("map-grid-bad", "[output]", "[map]\ngrid = { D1 = [0.0, 0.1, 5], D2 = [0.1, 0.0, 5] }\n[output]",
+     r"map\.grid\.D2: expected min < max"),
+    ("map-grid-too-fine", "[output]", "[map]\ngrid = { D1 = [0.0, 0.1, 5000], D2 = [0.0, 0.1, 5] }\n[output]",
+     r"map\.grid\.D1: the number of grid points"),
+    ("figures-unknown", "figures = []", 'figures = ["stabilty"]', r"output\.figures: unknown figure kind"),
+    ("figures-twice", "figures = []", 'figures = ["stability", "stability"]', r"output\.figures: .*twice"),
+    ("figures-cycle-without-cycle", "figures = []", 'figures = ["cycle_work"]',
+     r"output\.figures: .*no cycle stage"),
+    ("figures-diagram-one-sweep", "figures = []", 'figures = ["stability_diagram"]',
+     r"output\.figures: .*two swept parameters"),
+    ("figures-work-map-without-directions", "figures = []", 'figures = ["second_order_work_map"]',
+     r"output\.figures: .*\[map\] directions"),
+    ("figures-state-map-without-grid", "figures = []", 'figures = ["state_map"]',
+     r"output\.figures: .*\[map\] grid"),
+    ("figures-state-map-without-total-form", "figures = []",
+     'figures = ["state_map"]\n[map]\ngrid = { D1 = [0.0, 0.1, 5], D2 = [0.0, 0.1, 5] }',
+     r"output\.figures: .*total form"),
+    ("output-file-directory", "figures = []", 'figures = []\nfile = "results/"', r"output\.file: .*directory"),
+    ("output-file-empty", "figures = []", 'figures = []\nfile = ""', r"output\.file: expected a non-empty"),
+]
+
+
+@pytest.mark.parametrize("case_id, old, new, field", BAD_STUDIES, ids=[c[0] for c in BAD_STUDIES])
+def test_a_bad_study_file_exits_2_naming_its_field_and_writes_nothing(
+    case_id, old, new, field, tmp_path, capfd, monkeypatch
+):
+    assert old in TINY, case_id
+    text = TINY.replace(old, new, 1)
+    if case_id == "stage-drive-swept-to-rest":
+        text = text.replace("gamma = [0.5, 2.0]", "gamma = [0.5, 2.0]\nF_end = [0.0]")  # a sweep of one value
+    if case_id == "figures-state-map-without-total-form":
+        text = text.replace('names = ["mcnamara"]', 'names = ["cundall_strack"]')
+    monkeypatch.chdir(tmp_path)
+    study = write_study(tmp_path, text)
+    code, out, err = run_cli(["run", study, "-o", tmp_path / "out.nc"], capfd)
+    assert code == 2, err
+    assert_one_line(err, rf"^{study}: {field}")
+    assert tree(tmp_path) == {"study.toml"}, "nothing is run or written"
+
+
+def test_a_study_file_that_is_not_utf8_exits_2(tmp_path, capfd):
+    study = tmp_path / "study.toml"
+    study.write_bytes(TINY.encode() + b"\n# \xff\xfe\n")
+    code, _, err = run_cli(["run", study, "-o", tmp_path / "out.nc"], capfd)
+    assert code == 2
+    assert_one_line(err, r"toml: the file is not UTF-8")
+    assert tree(tmp_path) == {"study.toml"}
+
+
+# --- bad command lines: exit 2, one line, nothing written ----------------------------------------
+
+#: (id, arguments after "ncstab" -- "{study}" and "{out}" are filled in --, what the line says).
+BAD_ARGUMENTS = [
+    ("unknown-command", ["lwas"], r"invalid choice: 'lwas'"),
+    ("run-without-study", ["run"], r"the following arguments are required: STUDY\.toml"),
+    ("workers-not-a-number", ["run", "{study}", "--workers", "two"], r"--workers: invalid int value: 'two'"),
+    ("workers-zero", ["run", "{study}", "-o", "{out}", "--workers", "0"], r"--workers must be at least 1"),
+    ("chunk-cases-zero", ["run", "{study}", "-o", "{out}", "--chunk-cases", "0"], r"--chunk-cases must be at least 1"),
+    ("max-cases-zero", ["run", "{study}", "-o", "{out}", "--max-cases", "0"], r"--max-cases must be at least 1"),
+    ("scheduler-timeout-zero", ["run", "{study}", "-o", "{out}", "--scheduler-timeout", "0"],
+     r"--scheduler-timeout must be a positive number"),
+    ("workers-and-scheduler", ["run", "{study}", "--workers", "2", "--scheduler", "tcp://127.0.0.1:8786"],
+     r"not allowed with argument"),
+    ("resume-and-overwrite", ["run", "{study}", "--resume", "--overwrite"], r"not allowed with argument"),
+    ("output-for-two-studies", ["run", "{study}", "{study}", "-o", "{out}"], r"-o/--output needs exactly one study"),
+    ("scheduler-not-an-address", ["run", "{study}", "-o", "{out}", "--scheduler", "notanaddress"],
+     r"--scheduler 'notanaddress' is not a dask scheduler address"),
+    ("scheduler-port-out-of-range", ["run", "{study}", "-o", "{out}", "--scheduler", "tcp://127.0.0.1:99999"],
+     r"is not a dask scheduler address"),
+    ("scheduler-unknown-protocol", ["run", "{study}", "-o", "{out}", "--scheduler", "http://127.0.0.1:8786"],
+     r"is not a dask scheduler address"),
+    ("study-file-missing", ["run", "{missing}", "-o", "{out}"], r"cannot read the study file: No such file"),
+    ("study-file-a-directory", ["run", "{directory}", "-o", "{out}"], r"cannot read the study file: Is a directory"),
+    ("info-missing-archive", ["info", "{missing}"], r"no such archive"),
+    ("plot-missing-archive", ["plot", "{missing}"], r"no such archive"),
+    ("info-without-archive", ["info"], r"the following arguments are required: OUT\.nc"),
+    ("plot-unknown-kind", ["plot", "{archive}", "--kinds", "stabilty"], r"unknown figure kind 'stabilty'"),
+    ("plot-kind-that-does-not-fit", ["plot", "{archive}", "--kinds", "cycle_work"], r"cannot draw the figures: .*cycle"),
+    ("plot-diagram-of-one-sweep", ["plot", "{archive}", "--kinds", "stability_diagram"],
+     r"cannot draw the figures: .*two swept parameters"),
+    ("unknown-option", ["run", "{study}", "--fast"], r"unrecognized arguments: --fast"),
+]
+
+
+#: Four cases of 20 states or more: ``u`` and ``stage`` have 64 values or more, so they are compressed
+#: (Fletcher-32 checked by HDF5) while ``n_steps`` and the strings carry digests.
+ARCHIVED = FOUR.replace("drive = { D1 = 0.05 }", "drive = { D1 = 0.4 }").replace("max_step = 0.05", "max_step = 0.02")
+
+
+@pytest.fixture(scope="module")
+def archive(tmp_path_factory) -> Path:
+    """A good archive of a four-case study."""
+    path = tmp_path_factory.mktemp("good") / "four.nc"
+    write_dataset(run_study(parse_study(ARCHIVED)), path)
+    with h5py.File(path, "r") as handle:  # the layout the cases below rely on
+        assert handle["u"].fletcher32 and handle["stage"].fletcher32 and handle["n_steps"].chunks is None
+    return path
+
+
+@pytest.mark.parametrize("case_id, argv, message", BAD_ARGUMENTS, ids=[c[0] for c in BAD_ARGUMENTS])
+def test_a_bad_command_line_exits_2_in_one_line_and_writes_nothing(
+    case_id, argv, message, archive, tmp_path, capfd, monkeypatch
+):
+    monkeypatch.chdir(tmp_path)
+    study = write_study(tmp_path, TINY)
+    copy = copy_archive(archive, tmp_path)
+    (tmp_path / "folder").mkdir()
+    names = {"{study}": study, "{out}": tmp_path / "out.nc", "{missing}": tmp_path / "missing.toml",
+             "{directory}": tmp_path / "folder", "{archive}": copy}
+    before = tree(tmp_path)
+    code, _, err = run_cli([names.get(a, a) for a in argv], capfd)
+    assert code == 2, err
+    assert_one_line(err, message)
+    assert tree(tmp_path) == before, "nothing is run or written"
+
+
+# --- archives that are not readable ncstab archives: info and plot exit 2 -------------------------
+
+
+def _truncated(fraction: float):
+    def make(path: Path) -> Path:
+        data = path.read_bytes()
+        path.write_bytes(data[: int(len(data) * fraction)])
+        return path
+
+    return make
+
+
+def _zeroed_superblock(path: Path) -> Path:
+    with open(path, "r+b") as handle:
+        handle.write(bytes(48))
+    return path
+
+
+def _flipped_compressed(path: Path) -> Path:
+    flip_byte(path, chunk_offset(path, "u"))  # inside deflated data: HDF5's Fletcher-32 fails
+    return path
+
+
+def _flipped_compressed_integers(path: Path) -> Path:
+    flip_byte(path, chunk_offset(path, "stage"), 0x01)
+    return path
+
+
+def _flipped_uncompressed(path: Path) -> Path:
+    flip_byte(path, contiguous_offset(path, "n_steps") + 1, 0x01)  # n_steps += 256: only the digest sees it
+    return path
+
+
+def _flipped_status_text(path: Path) -> Path:
+    data = bytearray(path.read_bytes())
+    at = data.index(b"finished")
+    data[at] = ord("F")  # "Finished": the strings live in HDF5's heap, checked by the digest
+    path.write_bytes(bytes(data))
+    return path
+
+
+def _netcdf3(path: Path) -> Path:
+    xr.Dataset({"t": ("x", np.arange(3.0))}).to_netcdf(path, engine="scipy")
+    return path
+
+
+def _foreign_netcdf4(path: Path) -> Path:
+    xr.Dataset({"t": ("x", np.arange(3.0))}, attrs={"title": "not ncstab"}).to_netcdf(path, engine="netcdf4")
+    return path
+
+
+def _plain_hdf5(path: Path) -> Path:
+    with h5py.File(path, "w") as handle:
+        handle["group/data"] = np.arange(10)
+    return path
+
+
+def _text_file(path: Path) -> Path:
+    path.write_text("this is not an archive\n")
+    return path
+
+
+def _directory(path: Path) -> Path:
+    path.unlink()
+    path.mkdir()
+    return path
+
+
+def _without_status(path: Path) -> Path:
+    # Rewritten by another program without the status variable (and without ncstab's digests).
+    dataset = xr.open_dataset(path, engine="netcdf4").load()
+    dataset.close()
+    dataset.attrs.pop("ncstab_sha256")
+    dataset.drop_vars("status").to_netcdf(path, engine="netcdf4")
+    return path
+
+
+def _bad_figures_attribute(path: Path) -> Path:
+    edit_archive(path, attribute="figures", text="load_displacement,pie_chart")
+    return path
+
+
+def _first_value(path: Path, variable: str, value):
+    values = xr.open_dataset(path, engine="netcdf4")[variable].load().values.astype(object)
+    values.flat[0] = value
+    return values
+
+
+def _n_steps_beyond_the_steps(path: Path) -> Path:
+    # As if written without digests (an archive from before them), so that only the invariant can see it.
+    edit_archive(path, variable="n_steps", values=_first_value(path, "n_steps", 415))
+    return path
+
+
+def _unknown_status(path: Path) -> Path:
+    edit_archive(path, variable="status", values=_first_value(path, "status", "done"))
+    return path
+
+
+def _study_text_invalid(path: Path) -> Path:
+    edit_archive(path, attribute="study", text="[study]\nname = 3\n")
+    return path
+
+
+def _study_text_missing(path: Path) -> Path:
+    edit_archive(path, attribute="study")
+    return path
+
+
+def _damaged_digests(path: Path) -> Path:
+    edit_archive(path, attribute="ncstab_sha256", text="status 1234", drop_digests=False)
+    return path
+
+
+def _negative_n_steps(path: Path) -> Path:
+    edit_archive(path, variable="n_steps", values=_first_value(path, "n_steps", -1))
+    return path
+
+
+#: (id, how the archive is spoilt, what the line says after "is not a readable ncstab archive: ").
+BAD_ARCHIVES = [
+    ("empty", _truncated(0.0), r"the file is empty"),
+    ("truncated-100-bytes", lambda p: _truncated(100 / p.stat().st_size)(p), r"netCDF cannot open it"),
+    ("truncated-tenth", _truncated(0.1), r"netCDF cannot open it|cannot be read"),
+    ("truncated-half", _truncated(0.5), r"netCDF cannot open it|cannot be read"),
+    ("truncated-last-byte", _truncated(0.9999), r"netCDF cannot open it|cannot be read|checksum"),
+    ("zeroed-superblock", _zeroed_superblock, r"netCDF cannot open it"),
+    ("flipped-compressed-floats", _flipped_compressed, r"variable 'u' cannot be read"),
+    ("flipped-compressed-integers", _flipped_compressed_integers, r"variable 'stage' cannot be read"),
+    ("flipped-uncompressed", _flipped_uncompressed, r"variable 'n_steps' does not match its checksum"),
+    ("flipped-string", _flipped_status_text, r"variable 'status' does not match its checksum"),
+    ("netcdf3", _netcdf3, r"no 'status', 'message', 'n_steps', 'law' variable"),
+    ("foreign-netcdf4", _foreign_netcdf4, r"no 'status', 'message', 'n_steps', 'law' variable"),
+    ("plain-hdf5", _plain_hdf5, r"no 'status'|netCDF cannot open it"),
+    ("text-file", _text_file, r"netCDF cannot open it"),
+    ("directory", _directory, r"it is a directory"),
+    ("without-status", _without_status, r"no 'status' variable"),
+    ("bad-figures-attribute", _bad_figures_attribute, r"attribute 'figures' names 'pie_chart'"),
+    ("n-steps-beyond-steps", _n_steps_beyond_the_steps,
+     r"variable 'n_steps' has 415 stored states where the 'step' dimension has \d+"),
+    ("n-steps-negative", _negative_n_steps, r"variable 'n_steps' has -1 stored states"),
+    ("unknown-status", _unknown_status, r"variable 'status' holds 'done'"),
+    ("study-text-invalid", _study_text_invalid, r"its 'study' attribute is not a valid study file \(study\.name"),
+    ("study-text-missing", _study_text_missing, r"no 'study' attribute"),
+    ("digests-damaged", _damaged_digests, r"attribute 'ncstab_sha256' is damaged"),
+]
+
+
+@pytest.mark.parametrize("command", ["info", "plot"])
+@pytest.mark.parametrize("case_id, spoil, reason", BAD_ARCHIVES, ids=[c[0] for c in BAD_ARCHIVES])
+def test_an_archive_that_is_not_readable_exits_2_saying_why(
+    case_id, spoil, reason, command, archive, tmp_path, capfd
+):
+    path = spoil(copy_archive(archive, tmp_path))
+    before = tree(tmp_path)
+    code, out, err = run_cli([command, path], capfd)
+    assert code == 2, err
+    assert_one_line(err, rf"^ncstab {command}: {path} is not a readable ncstab archive: ({reason})")
+    assert out == "" and tree(tmp_path) == before, "no figure and no file is written"
+
+
+def test_the_good_archive_passes_info_and_plot(archive, tmp_path, capfd):
+    """The control of the table above: the unspoilt copy is read, summarised and drawn."""
+    path = copy_archive(archive, tmp_path)
+    code, out, err = run_cli(["info", path], capfd)
+    assert (code, err) == (0, "") and "finished: 4" in out
+    code, out, err = run_cli(["plot", path, "--kinds", "load_displacement"], capfd)
+    assert (code, err) == (0, "") and tree(tmp_path) == {"archive.nc", "archive_load_displacement.png"}
+
+
+# --- outputs that cannot be written ---------------------------------------------------------------
+
+
+def _enospc(*args, **kwargs):
+    raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """The archive of the four-case study run in process, as read back (for identical resumed runs)."""
+    path = tmp_path_factory.mktemp("reference") / "out.nc"
+    write_dataset(run_study(parse_study(FOUR)), path)
+    return open_study(path)
+
+
+def assert_same_archive(path: Path, reference: xr.Dataset) -> None:
+    """Identical to the in-process archive but for the ``created`` time stamp."""
+    archive = open_study(path)
+    expected = reference.copy()
+    archive.attrs.pop("created"), expected.attrs.pop("created")
+    xr.testing.assert_identical(archive, expected)
+
+
+def test_an_output_that_is_a_directory_exits_2(tmp_path, capfd):
+    study = write_study(tmp_path, TINY)
+    (tmp_path / "out.nc").mkdir()
+    code, _, err = run_cli(["run", study, "-o", tmp_path / "out.nc"], capfd)
+    assert code == 2
+    assert_one_line(err, r"output .*out\.nc is a directory")
+    assert tree(tmp_path) == {"study.toml", "out.nc"}
+
+
+def test_an_output_under_a_file_exits_2(tmp_path, capfd):
+    study = write_study(tmp_path, TINY)
+    (tmp_path / "plain").write_text("a file")
+    code, _, err = run_cli(["run", study, "-o", tmp_path / "plain" / "sub" / "out.nc"], capfd)
+    assert code == 2
+    assert_one_line(err, r"plain is a file, not a directory")
+    assert tree(tmp_path) == {"study.toml", "plain"}
+
+
+def test_a_study_name_too_long_for_a_file_name_exits_2(tmp_path, capfd, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    study = write_study(tmp_path, TINY.replace('name = "tiny"', f'name = "{"n" * 240}"'))
+    code, _, err = run_cli(["run", study], capfd)  # results/<name>.nc
+    assert code == 2
+    assert_one_line(err, r"output name .* is too long: 243 bytes, and the file system allows 255")
+    assert tree(tmp_path) == {"study.toml"}
+
+
+@pytest.mark.parametrize("where, message", [
+    ("/sys/ncstab-faults/out.nc", r"cannot create the directory /sys/ncstab-faults: Operation not permitted"),
+    ("/proc/ncstab-faults.nc", r"cannot write in /proc: "),
+])
+def test_an_output_root_cannot_create_exits_3_before_computing(where, message, tmp_path, capfd, monkeypatch):
+    computed = []
+    monkeypatch.setattr("ncstab.studies.run_study", lambda *a, **k: computed.append(1))
+    study = write_study(tmp_path, TINY)
+    code, _, err = run_cli(["run", study, "-o", where], capfd)
+    assert code == 3
+    assert_one_line(err, message)
+    assert not computed and not Path(where).exists() and tree(tmp_path) == {"study.toml"}
+
+
+@pytest.mark.parametrize("failure, message", [
+    (OSError(errno.ENOSPC, "No space left on device"), r"disk full while writing .*out\.nc"),
+    (RuntimeError("NetCDF: HDF error"), r"disk full while writing .*out\.nc \(NetCDF: HDF error\)"),
+    (RuntimeError("NetCDF: HDF error"), r"could not write .*out\.nc: NetCDF: HDF error"),
+])
+def test_a_failed_archive_write_exits_3_leaving_nothing(failure, message, tmp_path, capfd, monkeypatch):
+    def half_written(self, path, *args, **kwargs):
+        Path(path).write_bytes(b"half an archive")
+        raise failure
+
+    monkeypatch.setattr(xr.Dataset, "to_netcdf", half_written)
+    if "disk full" in message and isinstance(failure, RuntimeError):
+        # netCDF says only "HDF error" for a full disk: the free space decides.
+        monkeypatch.setattr("ncstab.studies.errors._free_bytes", lambda path: 1000)
+    study = write_study(tmp_path, TINY)
+    code, _, err = run_cli(["run", study, "-o", tmp_path / "out.nc"], capfd)
+    assert code == 3
+    assert_one_line(err, r"^ncstab run: tiny: " + message, r"nothing was written to .*out\.nc$")
+    assert tree(tmp_path) == {"study.toml"}, "no temporary, no lock"
+
+
+def test_a_full_disk_while_drawing_keeps_the_archive_and_exits_3(tmp_path, capfd, monkeypatch):
+    from matplotlib.figure import Figure
+
+    monkeypatch.setattr(Figure, "savefig", _enospc)
+    study = write_study(tmp_path, TINY.replace("figures = []", 'figures = ["load_displacement"]'))
+    code, _, err = run_cli(["run", study, "-o", tmp_path / "out.nc"], capfd)
+    assert code == 3
+    assert_one_line(err, r"disk full", r"the archive .*out\.nc was written, its figures were not all drawn")
+    assert tree(tmp_path) == {"study.toml", "out.nc"}
+    open_study(tmp_path / "out.nc")  # complete and verified
+
+
+def test_a_full_disk_in_a_chunked_run_keeps_its_chunks_for_resume(reference, tmp_path, capfd, monkeypatch):
+    import ncstab.studies.parts as parts_module
+
+    real_savez, calls = np.savez, []
+
+    def full_at_third(handle, **arrays):
+        calls.append(1)
+        if len(calls) == 3:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        real_savez(handle, **arrays)
+
+    monkeypatch.setattr(parts_module.np, "savez", full_at_third)
+    study = write_study(tmp_path, FOUR)
+    out = tmp_path / "out.nc"
+    code, _, err = run_cli(["run", study, "-o", out, "--chunk-cases", "1"], capfd)
+    assert code == 3
+    assert_one_line(err, r"disk full while writing .*mcnamara_000002\.npz",
+                    r"2 of 4 chunks kept in .*out\.nc\.parts: rerun with --resume")
+    parts = {"out.nc.parts", "out.nc.parts/manifest.json", "out.nc.parts/mcnamara_000000.npz",
+             "out.nc.parts/mcnamara_000001.npz"}
+    assert tree(tmp_path) == {"study.toml"} | parts
+    monkeypatch.setattr(parts_module.np, "savez", real_savez)
+    code, _, err = run_cli(["run", study, "-o", out, "--resume"], capfd)
+    assert (code, err) == (0, "")
+    assert tree(tmp_path) == {"study.toml", "out.nc"}
+    assert_same_archive(out, reference)
+
+
+# --- limits: refused before computing, exit 2, naming the key and the estimate ---------------------
+
+
+def test_more_cases_than_max_cases_option_exits_2(tmp_path, capfd):
+    study = write_study(tmp_path, TINY)
+    code, _, err = run_cli(["run", study, "-o", tmp_path / "out.nc", "--max-cases", "1"], capfd)
+    assert code == 2
+    assert_one_line(err, r"has 2 cases .*more than max_cases = 1 \(at least .* on disk\)")
+    assert tree(tmp_path) == {"study.toml"}
+
+
+def test_more_cases_than_the_study_max_cases_exits_2(tmp_path, capfd):
+    study = write_study(tmp_path, TINY.replace("max_step = 0.05", "max_step = 0.05\nmax_cases = 1"))
+    code, _, err = run_cli(["run", study, "-o", tmp_path / "out.nc"], capfd)
+    assert code == 2
+    assert_one_line(err, r"more than max_cases = 1")
+    assert tree(tmp_path) == {"study.toml"}
+
+
+def test_a_sweep_of_a_million_cases_is_refused_by_default(tmp_path, capfd):
+    gammas = ", ".join(f"{0.1 + 0.001 * k:.4f}" for k in range(1001))
+    alphas = ", ".join(f"{0.5 + 0.0005 * k:.5f}" for k in range(1000))
+    text = TINY.replace("gamma = [0.5, 2.0]", f"gamma = [{gammas}]\nalpha0 = [{alphas}]").replace('alpha0 = "pi/4"\n', "")
+    study = write_study(tmp_path, text)
+    code, _, err = run_cli(["run", study, "-o", tmp_path / "out.nc"], capfd)
+    assert code == 2
+    assert_one_line(err, r"has 1,001,000 cases .*more than max_cases = 1,000,000 \(at least [\d.]+ GB on disk\)")
+    assert tree(tmp_path) == {"study.toml"}
+
+
+def test_an_archive_larger_than_the_free_disk_exits_2(tmp_path, capfd, monkeypatch):
+    monkeypatch.setattr(preflight_module, "free_disk", lambda path: 10_000)
+    study = write_study(tmp_path, TINY)
+    code, _, err = run_cli(["run", study, "-o", tmp_path / "out.nc"], capfd)
+    assert code == 2
+    assert_one_line(err, r"needs at least [\d.]+ kB on disk .* has 10 kB free; reduce the sweep \(\[parameters\]\)")
+    assert tree(tmp_path) == {"study.toml"}
+
+
+@pytest.mark.parametrize("section, message", [
+    ("directions = 100000", r"\[map\] directions = 100000: the directional work .* needs at least [\d.]+ MB of memory"),
+    ("grid = { D1 = [0.0, 0.1, 2000], D2 = [0.0, 0.1, 2000] }",
+     r"\[map\] grid of 2000 x 2000 points: the 7 state maps of 2 cases need at least 448 MB of memory"),
+])
+def test_a_map_larger_than_the_memory_exits_2(section, message, tmp_path, capfd, monkeypatch):
+    monkeypatch.setattr(preflight_module, "available_memory", lambda: 1_000_000)
+    study = write_study(tmp_path, TINY.replace("[output]", f"[map]\n{section}\n[output]"))
+    code, _, err = run_cli(["run", study, "-o", tmp_path / "out.nc"], capfd)
+    assert code == 2
+    assert_one_line(err, message, r"more than the 1 MB available")
+    assert tree(tmp_path) == {"study.toml"}
+
+
+# --- two runs on one output: the lock -------------------------------------------------------------
+
+
+def _hostname() -> str:
+    import socket
+
+    return socket.gethostname()
+
+
+def test_an_output_locked_by_a_live_process_exits_3_naming_its_pid(tmp_path, capfd):
+    holder = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        study = write_study(tmp_path, TINY)
+        lock = lock_path(tmp_path / "out.nc")
+        lock.write_text(f"pid {holder.pid}\nhost {_hostname()}\n")
+        code, _, err = run_cli(["run", study, "-o", tmp_path / "out.nc"], capfd)
+        assert code == 3
+        assert_one_line(err, rf"out\.nc is being written by process {holder.pid} \(lock .*out\.nc\.lock\)")
+        assert tree(tmp_path) == {"study.toml", "out.nc.lock"} and str(holder.pid) in lock.read_text()
+    finally:
+        holder.kill()
+        holder.wait()
+
+
+def test_an_output_locked_by_another_run_in_this_process_exits_3(tmp_path, capfd):
+    """The lock is a real flock: held by another thread (as by another run), it is refused."""
+    held, done = threading.Event(), threading.Event()
+
+    def other_run() -> None:
+        with OutputLock(tmp_path / "out.nc"):
+            held.set()
+            done.wait(30)
+
+    thread = threading.Thread(target=other_run)
+    thread.start()
+    try:
+        assert held.wait(10)
+        study = write_study(tmp_path, TINY)
+        code, _, err = run_cli(["run", study, "-o", tmp_path / "out.nc", "--chunk-cases", "1"], capfd)
+        assert code == 3
+        assert_one_line(err, rf"is being written by this process \({os.getpid()}, another thread\)")
+        assert tree(tmp_path) == {"study.toml", "out.nc.lock"}, "the other run's parts would be untouched"
+    finally:
+        done.set()
+        thread.join()
+    assert tree(tmp_path) == {"study.toml"}, "the holder removes its lock"
+
+
+def test_a_stale_lock_is_taken_over_with_one_line(tmp_path, capfd):
+    gone = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    pid = int(gone.stdout)
+    study = write_study(tmp_path, TINY)
+    lock_path(tmp_path / "out.nc").write_text(f"pid {pid}\nhost {_hostname()}\n")
+    code, out, err = run_cli(["run", study, "-o", tmp_path / "out.nc"], capfd)
+    assert code == 0 and "finished: 2" in out
+    assert_one_line(err, rf"took over the lock .*out\.nc\.lock of process {pid}, which is no longer running")
+    assert tree(tmp_path) == {"study.toml", "out.nc"}
+
+
+def test_a_lock_file_without_a_holder_is_taken_silently(tmp_path, capfd):
+    study = write_study(tmp_path, TINY)
+    lock_path(tmp_path / "out.nc").write_text("")
+    code, _, err = run_cli(["run", study, "-o", tmp_path / "out.nc"], capfd)
+    assert (code, err) == (0, "")
+    assert tree(tmp_path) == {"study.toml", "out.nc"}
+
+
+# --- finished parts are never deleted without --resume or --overwrite -----------------------------
+
+
+def _interrupted_after(monkeypatch, chunks: int, signal_number: int = signal.SIGINT):
+    """Make the run of chunks send itself ``signal_number`` when chunk ``chunks + 1`` starts."""
+    original, started = chunked_module.run_chunk, []
+
+    def run_chunk(*args):
+        started.append(args)
+        if len(started) == chunks + 1:
+            os.kill(os.getpid(), signal_number)  # a real signal: the handler raises at the next bytecode
+            time.sleep(5)  # not reached: the run stops here
+        return original(*args)
+
+    monkeypatch.setattr(chunked_module, "run_chunk", run_chunk)
+    return started
+
+
+@pytest.fixture(scope="module")
+def interrupted_once(tmp_path_factory):
+    """A chunked run of the four-case study stopped by SIGINT after two chunks of one case
+    (run once; each test gets a copy of what it left)."""
+    from _pytest.monkeypatch import MonkeyPatch
+
+    directory = tmp_path_factory.mktemp("interrupted")
+    study = write_study(directory, FOUR)
+    with MonkeyPatch.context() as patch:
+        _interrupted_after(patch, 2)
+        patch.setattr(chunked_module, "gc", type("NoCollector", (), {"collect": staticmethod(lambda: 0)}))
+        from ncstab.cli import main
+
+        code = main(["run", str(study), "-o", str(directory / "out.nc"), "--chunk-cases", "1"])
+    assert code == 3
+    return directory
+
+
+@pytest.fixture
+def interrupted(interrupted_once, tmp_path):
+    """(study file, output) of a copy of the interrupted run's directory."""
+    shutil.copytree(interrupted_once, tmp_path, dirs_exist_ok=True)
+    return tmp_path / "study.toml", tmp_path / "out.nc", 3, ""
+
+
+PARTS_OF_TWO = {"out.nc.parts", "out.nc.parts/manifest.json", "out.nc.parts/mcnamara_000000.npz",
+                "out.nc.parts/mcnamara_000001.npz"}
+
+
+@pytest.mark.parametrize("signal_number", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_an_interrupted_chunked_run_exits_3_keeping_its_chunks(signal_number, tmp_path, capfd, monkeypatch, reference):
+    study = write_study(tmp_path, FOUR)
+    out = tmp_path / "out.nc"
+    _interrupted_after(monkeypatch, 2, signal_number)
+    code, _, err = run_cli(["run", study, "-o", out, "--chunk-cases", "1"], capfd)
+    assert code == 3
+    name = signal.Signals(signal_number).name
+    assert_one_line(err, rf"^ncstab run: tiny: interrupted by {name}; 2 of 4 chunks kept in .*out\.nc\.parts: "
+                         "rerun with --resume")
+    assert tree(tmp_path) == {"study.toml"} | PARTS_OF_TWO, "no lock, no temporary, no archive in progress"
+    assert signal.getsignal(signal.SIGINT) is not None and signal.getsignal(signal.SIGTERM) == signal.SIG_DFL
+
+
+def test_resume_after_an_interrupt_gives_the_identical_archive(interrupted, reference, capfd, monkeypatch):
+    study, out, code, _ = interrupted
+    assert code == 3
+    computed = []
+    original = chunked_module.run_chunk
+    monkeypatch.setattr(chunked_module, "run_chunk", lambda *a: computed.append(a[2]) or original(*a))
+    code, _, err = run_cli(["run", study, "-o", out, "--resume"], capfd)
+    assert (code, err) == (0, "") and computed == [2, 3], "only the missing chunks are computed"
+    assert tree(out.parent) == {"study.toml", "out.nc"}
+    assert_same_archive(out, reference)
+
+
+def test_a_run_without_resume_refuses_to_start_over_finished_chunks(interrupted, capfd):
+    study, out, _, _ = interrupted
+    before = {p: p.read_bytes() for p in out.parent.rglob("*.npz")}
+    for extra in ([], ["--chunk-cases", "1"]):  # in process (a small study) or in chunks: the same refusal
+        code, _, err = run_cli(["run", study, "-o", out, *extra], capfd)
+        assert code == 2
+        assert_one_line(err, r"out\.nc\.parts holds 2 finished chunk\(s\) of an earlier run of out\.nc: "
+                             r"pass --resume to keep them .*or --overwrite to discard them")
+        assert tree(out.parent) == {"study.toml"} | PARTS_OF_TWO
+        assert {p: p.read_bytes() for p in out.parent.rglob("*.npz")} == before, "parts untouched"
+
+
+def test_overwrite_discards_the_finished_chunks_and_starts_over(interrupted, reference, capfd):
+    study, out, _, _ = interrupted
+    code, _, err = run_cli(["run", study, "-o", out, "--overwrite"], capfd)
+    assert (code, err) == (0, "")
+    assert tree(out.parent) == {"study.toml", "out.nc"}
+    assert_same_archive(out, reference)
+
+
+def test_resume_refuses_the_chunks_of_another_study(interrupted, capfd):
+    study, out, _, _ = interrupted
+    study.write_text(FOUR.replace("drive = { D1 = 0.05 }", "drive = { D1 = 0.06 }"))
+    code, _, err = run_cli(["run", study, "-o", out, "--resume"], capfd)
+    assert code == 2
+    assert_one_line(err, r"the parts belong to another version of study 'tiny'; run with --overwrite")
+    assert tree(out.parent) == {"study.toml"} | PARTS_OF_TWO
+
+
+def test_resume_refuses_another_chunk_size(interrupted, capfd):
+    study, out, _, _ = interrupted
+    code, _, err = run_cli(["run", study, "-o", out, "--resume", "--chunk-cases", "2"], capfd)
+    assert code == 2
+    assert_one_line(err, r"the parts were written with chunk_cases = 1, not 2")
+    assert tree(out.parent) == {"study.toml"} | PARTS_OF_TWO
+
+
+@pytest.mark.parametrize("damage", ["truncated", "flipped", "empty"])
+def test_a_damaged_chunk_is_computed_again_on_resume(damage, interrupted, reference, capfd):
+    study, out, _, _ = interrupted
+    part = out.parent / "out.nc.parts" / "mcnamara_000001.npz"
+    data = part.read_bytes()
+    if damage == "truncated":
+        part.write_bytes(data[: len(data) // 2])
+    elif damage == "flipped":
+        flip_byte(part, len(data) // 2)
+    else:
+        part.write_bytes(b"")
+    code, _, err = run_cli(["run", study, "-o", out, "--resume"], capfd)
+    assert code == 0
+    assert_one_line(err, r"1 kept chunk\(s\) could not be read back \(mcnamara_000001\.npz\.\.\.\): computing them again")
+    assert tree(out.parent) == {"study.toml", "out.nc"}
+    assert_same_archive(out, reference)
+
+
+def test_the_temporaries_of_a_killed_run_are_removed_by_the_next_run(interrupted, reference, capfd):
+    """What a killed process leaves beside the archive and in its parts: removed, with one line."""
+    study, out, _, _ = interrupted
+    left = [out.parent / ".out.nc.0123abcd.tmp", out.parent / ".out_load_displacement.png.4242.0123456789ab.tmp",
+            out.parent / "out.nc.parts" / ".mcnamara_000002.npz.89abcdef.part",
+            out.parent / "out.nc.parts" / "archive.nc.tmp"]
+    for path in left:
+        path.write_bytes(b"half a file")
+    keep = out.parent / ".other.nc.0123abcd.tmp"  # another output's temporary: not ours to remove
+    keep.write_bytes(b"someone else's")
+    code, _, err = run_cli(["run", study, "-o", out, "--resume"], capfd)
+    assert code == 0
+    assert_one_line(err, r"removed 4 temporary file\(s\) a killed run left")
+    assert tree(out.parent) == {"study.toml", "out.nc", keep.name}
+    assert_same_archive(out, reference)
+
+
+# --- interrupts of a run in process ----------------------------------------------------------------
+
+
+def test_an_interrupted_run_in_process_exits_3_writing_nothing(tmp_path, capfd, monkeypatch):
+    import ncstab.studies as studies
+
+    original = studies.run_study
+
+    def interrupted(*args, **kwargs):
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(5)  # not reached
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(studies, "run_study", interrupted)
+    study = write_study(tmp_path, TINY)
+    code, _, err = run_cli(["run", study, "-o", tmp_path / "out.nc"], capfd)
+    assert code == 3
+    assert_one_line(err, r"^ncstab run: tiny: interrupted by SIGINT; nothing was written to .*out\.nc$")
+    assert tree(tmp_path) == {"study.toml"}
+
+
+def test_an_interrupt_while_drawing_keeps_the_archive(tmp_path, capfd, monkeypatch):
+    from matplotlib.figure import Figure
+
+    def interrupted(self, *args, **kwargs):
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(5)  # not reached
+
+    monkeypatch.setattr(Figure, "savefig", interrupted)
+    study = write_study(tmp_path, TINY.replace("figures = []", 'figures = ["load_displacement"]'))
+    code, _, err = run_cli(["run", study, "-o", tmp_path / "out.nc"], capfd)
+    assert code == 3
+    assert_one_line(err, r"interrupted by SIGTERM; the archive .*out\.nc was written, its figures were not all drawn")
+    assert tree(tmp_path) == {"study.toml", "out.nc"}, "no half PNG"
+
+
+def test_a_second_study_failing_says_which_archives_were_written(tmp_path, capfd, monkeypatch):
+    first = write_study(tmp_path, TINY, "first.toml")
+    second = write_study(tmp_path, TINY.replace('name = "tiny"', 'name = "second"'), "second.toml")
+    monkeypatch.chdir(tmp_path)
+    original, calls = xr.Dataset.to_netcdf, []
+
+    def full_second_time(self, *args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return original(self, *args, **kwargs)
+
+    monkeypatch.setattr(xr.Dataset, "to_netcdf", full_second_time)
+    code, _, err = run_cli(["run", first, second], capfd)
+    assert code == 3
+    assert_one_line(err, r"^ncstab run: second: disk full while writing results/second\.nc",
+                    r"written before: results/tiny\.nc$")
+    assert tree(tmp_path) == {"first.toml", "second.toml", "results", "results/tiny.nc"}
+
+
+def test_an_unexpected_error_is_one_line_and_debug_shows_the_traceback(tmp_path, capfd, monkeypatch):
+    import ncstab.studies as studies
+
+    monkeypatch.setattr(studies, "run_study", lambda *a, **k: 1 / 0)
+    study = write_study(tmp_path, TINY)
+    code, _, err = run_cli(["run", study, "-o", tmp_path / "out.nc"], capfd)
+    assert code == 3
+    assert_one_line(err, r"internal error: ZeroDivisionError: division by zero \(rerun with --debug")
+    with pytest.raises(ZeroDivisionError):
+        run_cli(["run", study, "-o", tmp_path / "out.nc", "--debug"], capfd)
+    assert tree(tmp_path) == {"study.toml"}
