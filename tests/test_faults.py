@@ -889,3 +889,229 @@ def test_an_unexpected_error_is_one_line_and_debug_shows_the_traceback(tmp_path,
     with pytest.raises(ZeroDivisionError):
         run_cli(["run", study, "-o", tmp_path / "out.nc", "--debug"], capfd)
     assert tree(tmp_path) == {"study.toml"}
+
+
+# --- faults that need a process of their own -------------------------------------------------------
+
+
+def _wait_for(condition, timeout: float = 60.0, what: str = "") -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out waiting for {what}")
+        time.sleep(0.02)
+
+
+def _python(code: str, *args, **kwargs) -> subprocess.Popen:
+    """A child Python running ``code`` (its stderr captured), in a session of its own."""
+    env = {**os.environ, "PYTHONWARNINGS": "ignore"}
+    return subprocess.Popen([sys.executable, "-c", code, *map(str, args)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=env, start_new_session=True, **kwargs)
+
+
+#: ``ncstab run`` in a child whose chunks each take 0.3 s more (so that a signal lands mid-run).
+SLOW_RUN = """
+import sys, time
+import ncstab.studies.chunked as chunked
+original = chunked.run_chunk
+def run_chunk(*args):
+    time.sleep(0.3)
+    return original(*args)
+chunked.run_chunk = run_chunk
+from ncstab.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_a_killed_run_is_resumed_identical_taking_over_its_lock(tmp_path, reference, capfd):
+    """kill -9 after two chunks: the lock, the archive in progress and the finished parts stay;
+    --resume takes the stale lock over, removes the temporaries, computes the rest."""
+    study = write_study(tmp_path, FOUR)
+    out = tmp_path / "out.nc"
+    child = _python(SLOW_RUN, "run", study, "-o", out, "--chunk-cases", "1")
+    parts = tmp_path / "out.nc.parts"
+    _wait_for(lambda: len(list(parts.glob("*.npz"))) >= 2 or child.poll() is not None, what="two chunks")
+    os.kill(child.pid, signal.SIGKILL)
+    child.communicate()
+    left = tree(tmp_path)
+    assert {"out.nc.lock", "out.nc.parts/manifest.json", "out.nc.parts/archive.nc.tmp"} <= left and "out.nc" not in left
+    code, _, err = run_cli(["run", study, "-o", out, "--resume"], capfd)
+    assert code == 0
+    assert_one_line(err, rf"took over the lock .*out\.nc\.lock of process {child.pid}, which is no longer running; "
+                         r"removed \d+ temporary file\(s\)")
+    assert tree(tmp_path) == {"study.toml", "out.nc"}
+    assert_same_archive(out, reference)
+
+
+def test_ctrl_c_on_a_local_cluster_stops_every_process_in_one_line(tmp_path, reference, capfd):
+    """SIGINT to the whole process group, as a terminal's Ctrl-C: the workers ignore it, the run
+    closes them, keeps its finished chunks and says so in one line; --resume completes it."""
+    pytest.importorskip("dask.distributed")
+    study = write_study(tmp_path, FOUR)
+    out = tmp_path / "out.nc"
+    child = _python(SLOW_RUN, "run", study, "-o", out, "--chunk-cases", "1", "--workers", "2")
+    manifest = tmp_path / "out.nc.parts" / "manifest.json"
+    _wait_for(lambda: manifest.exists() or child.poll() is not None, timeout=90, what="the cluster")
+    os.killpg(child.pid, signal.SIGINT)
+    _, err = child.communicate(timeout=90)
+    assert child.returncode == 3, err
+    assert_one_line(err, r"^ncstab run: tiny: interrupted by SIGINT; (no chunk was finished|\d of 4 chunks kept)")
+    _wait_for(lambda: _group_is_empty(child.pid), timeout=30, what="the workers to exit")
+    left = tree(tmp_path)
+    assert not {"out.nc", "out.nc.lock", "out.nc.parts/archive.nc.tmp"} & left
+    assert not [name for name in left if name.rsplit("/", 1)[-1].startswith(".")], "no temporary"
+    code, _, err = run_cli(["run", study, "-o", out, "--resume"], capfd)
+    assert (code, err) == (0, "")
+    assert_same_archive(out, reference)
+
+
+def _group_is_empty(group: int) -> bool:
+    try:
+        os.killpg(group, 0)
+    except ProcessLookupError:
+        return True
+    return False
+
+
+@pytest.fixture
+def dask_cluster(tmp_path):
+    """A real dask scheduler and one worker on 127.0.0.1, each in a process of its own.
+    Yields (scheduler address, scheduler process); both are stopped at the end."""
+    pytest.importorskip("dask.distributed")
+    dask = Path(sys.executable).with_name("dask")
+    file = tmp_path / "scheduler.json"
+    logs = [open(tmp_path / name, "w") for name in ("scheduler.log", "worker.log")]
+    scheduler = subprocess.Popen([dask, "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+                                  "--scheduler-file", file], stdout=logs[0], stderr=logs[0], start_new_session=True)
+    processes = [scheduler]
+    try:
+        _wait_for(lambda: file.exists() and file.stat().st_size > 0, what="the scheduler")
+        import json
+
+        address = json.loads(file.read_text())["address"]
+        worker = subprocess.Popen([dask, "worker", address, "--nthreads", "1", "--no-dashboard",
+                                   "--local-directory", tmp_path / "worker"], stdout=logs[1], stderr=logs[1],
+                                  start_new_session=True, cwd=tmp_path)
+        processes.append(worker)
+        _wait_for(lambda: "Registered to" in (tmp_path / "worker.log").read_text(), what="the worker")
+        yield address, scheduler
+    finally:
+        for process in processes:
+            process.kill()
+            process.wait()
+        for log in logs:
+            log.close()
+
+
+#: Four cases of about 60 steps each: a chunk of one case keeps a worker busy long enough for the
+#: scheduler to be killed while chunks are still to come.
+LONGER = FOUR.replace("drive = { D1 = 0.05 }", "drive = { D1 = 0.5 }").replace("max_step = 0.05", "max_step = 0.01")
+
+
+def test_a_lost_scheduler_exits_3_keeping_chunks_then_an_unreachable_one_writes_nothing(
+    dask_cluster, tmp_path, capfd
+):
+    address, scheduler = dask_cluster
+    run = tmp_path / "run"
+    run.mkdir()
+    study = write_study(run, LONGER)
+    out = run / "out.nc"
+    child = _python("import sys\nfrom ncstab.cli import main\nsys.exit(main(sys.argv[1:]))",
+                    "run", study, "-o", out, "--chunk-cases", "1", "--scheduler", address, "--scheduler-timeout", "5")
+    _wait_for(lambda: any((run / "out.nc.parts").glob("*.npz")) or child.poll() is not None, timeout=90,
+              what="a first chunk")
+    scheduler.kill()
+    _, err = child.communicate(timeout=120)
+    assert child.returncode == 3, err
+    assert_one_line(err, r"^ncstab run: tiny: lost the dask cluster while running chunk .*\.npz",
+                    r"[1-3] of 4 chunks kept in .*out\.nc\.parts: rerun with --resume")
+    assert {"out.nc.parts/manifest.json"} <= tree(run)
+    assert not {"out.nc", "out.nc.lock", "out.nc.parts/archive.nc.tmp"} & tree(run)
+    code, _, err = run_cli(["run", study, "-o", out, "--resume"], capfd)  # in this process: the same archive
+    assert (code, err) == (0, "")
+    expected = tmp_path / "expected.nc"
+    write_dataset(run_study(parse_study(LONGER)), expected)
+    assert_same_archive(out, open_study(expected))
+
+    scheduler.wait()
+    elsewhere = tmp_path / "unreachable"
+    elsewhere.mkdir()
+    study = write_study(elsewhere, FOUR)
+    code, _, err = run_cli(["run", study, "-o", elsewhere / "out.nc", "--scheduler", address,
+                            "--scheduler-timeout", "1"], capfd)
+    assert code == 3
+    assert_one_line(err, rf"cannot reach the dask scheduler at {address} within 1 s", r"no chunk was finished$")
+    assert tree(elsewhere) == {"study.toml"}, "nothing is written when the cluster cannot be reached"
+
+
+def test_a_scheduler_that_does_not_answer_exits_3_within_its_timeout(tmp_path, capfd):
+    pytest.importorskip("dask.distributed")
+    import socket
+
+    with socket.socket() as silent:
+        silent.bind(("127.0.0.1", 0))
+        silent.listen(4)  # accepts connections, never speaks
+        address = f"tcp://127.0.0.1:{silent.getsockname()[1]}"
+        study = write_study(tmp_path, FOUR)
+        started = time.monotonic()
+        code, _, err = run_cli(["run", study, "-o", tmp_path / "out.nc", "--scheduler", address,
+                                "--scheduler-timeout", "1"], capfd)
+        assert time.monotonic() - started < 30
+    assert code == 3
+    assert_one_line(err, rf"cannot reach the dask scheduler at {address} within 1 s: it does not answer")
+    assert tree(tmp_path) == {"study.toml"}
+
+
+def test_a_directory_another_user_cannot_write_exits_3(tmp_path, capfd):
+    """As a user without write permission: this user if it is not root, else a child that has
+    imported ncstab as root and switched to 'nobody' (who may not even reach the directory)."""
+    study = write_study(tmp_path, TINY)
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    if os.geteuid() != 0:
+        locked.chmod(0o555)
+        code, _, err = run_cli(["run", study, "-o", locked / "out.nc"], capfd)
+    else:
+        import pwd
+
+        nobody = pwd.getpwnam("nobody")
+        study.chmod(0o644)  # readable by anyone through the descriptor the child opens as root
+        code_text = (
+            "import os, sys\n"
+            # (the standard library of this interpreter may be readable by root only: import first)
+            "import encodings.ascii, ncstab.cli, ncstab.studies.preflight, ncstab.studies.outputs\n"
+            "study = os.open(sys.argv[1], os.O_RDONLY)\n"
+            f"os.setgroups([]); os.setgid({nobody.pw_gid}); os.setuid({nobody.pw_uid})\n"
+            "sys.exit(ncstab.cli.main(['run', f'/dev/fd/{study}', '-o', sys.argv[2]]))\n"
+        )
+        child = _python(code_text, study, locked / "out.nc")
+        _, err = child.communicate(timeout=120)
+        code = child.returncode
+    assert code == 3, err
+    assert_one_line(err, rf"cannot (write in|reach) {locked}: Permission denied")
+    assert tree(locked) == set()
+
+
+def test_a_full_file_system_stops_the_write_in_one_line(tmp_path, capfd, monkeypatch):
+    """A real full disk (a 96 kB tmpfs in a mount namespace of its own, where the machine allows one):
+    the preflight lets the study through (its estimate is a lower bound), netCDF fails with
+    "HDF error", the run says "disk full" and leaves nothing.  Else the same with a write raising ENOSPC."""
+    study = write_study(tmp_path, TINY)
+    mount = tmp_path / "small"
+    mount.mkdir()
+    script = (f"mount -t tmpfs -o size=96k tmpfs {mount} || exit 99; "
+              f"{sys.executable} -m ncstab run {study} -o {mount / 'out.nc'} 2> {tmp_path / 'err.txt'}; "
+              f"echo $? > {tmp_path / 'code.txt'}; ls -A {mount} > {tmp_path / 'left.txt'}")
+    shell = shutil.which("unshare") and subprocess.run(
+        ["unshare", "--mount", "--propagation", "private", "sh", "-c", script], capture_output=True, timeout=120,
+        env={**os.environ, "PYTHONWARNINGS": "ignore"})
+    if shell and shell.returncode == 0 and (tmp_path / "code.txt").exists():
+        code, err = int((tmp_path / "code.txt").read_text()), (tmp_path / "err.txt").read_text()
+        left = set((tmp_path / "left.txt").read_text().split())
+    else:  # no mount namespace here: the write itself reports the full disk
+        monkeypatch.setattr(xr.Dataset, "to_netcdf", _enospc)
+        code, _, err = run_cli(["run", study, "-o", mount / "out.nc"], capfd)
+        left = {p.name for p in mount.iterdir()}
+    assert code == 3, err
+    assert_one_line(err, r"disk full while writing .*small/out\.nc", r"nothing was written")
+    assert left == set()

@@ -385,7 +385,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
     prefix = f"ncstab {args.command}"
     debug = bool(getattr(args, "debug", False))
-    with stop_on_signals(prefix), _quiet_cluster_logs(not debug):
+    on_cluster = getattr(args, "workers", None) is not None or getattr(args, "scheduler", None) is not None
+    with stop_on_signals(prefix), _quiet_cluster_logs(on_cluster and not debug):
         try:
             return int(args.handler(args))
         except NcstabError as error:
@@ -422,6 +423,8 @@ def _quiet_cluster_logs(quiet: bool) -> Iterator[None]:
     if not quiet:
         yield
         return
+    with contextlib.suppress(ImportError):
+        import distributed  # noqa: F401  (its import sets its loggers' levels: set them after)
     names = ["distributed", "tornado", "asyncio", "bokeh"]
     names += [name for name in logging.root.manager.loggerDict if name.startswith(("distributed.", "tornado."))]
     loggers = [logging.getLogger(name) for name in names]

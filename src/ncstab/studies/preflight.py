@@ -47,9 +47,9 @@ __all__ = [
 #: Archive size over the raw bytes of its values (measured: 0.67 on a 512-case
 #: stability diagram, 51 states per case on average, deflate level 1 with shuffle).
 COMPRESSED_FRACTION = 0.67
-#: Bytes of an archive whatever its cases (HDF5 headers and indexes: measured
-#: 100 kB for a 2-case archive).
-ARCHIVE_OVERHEAD = 256 * 1024
+#: Bytes of an archive whatever its cases (HDF5 headers and indexes), at least:
+#: measured 100-110 kB for a 2-case archive of about 90 variables.
+ARCHIVE_OVERHEAD = 64 * 1024
 #: Longest name ncstab derives from an archive's name: the temporary
 #: ``.<name>.<8 hex>.tmp`` (14 more bytes) and the figure temporaries
 #: ``.<stem>_<kind>.png.<pid>.<12 hex>.tmp`` (at most 60 more bytes than the stem).
@@ -64,9 +64,13 @@ _EVENTS = 6
 
 
 def _existing_ancestor(path: FilePath) -> FilePath:
+    """The nearest of ``path`` and its parents that exists (and that this user can see)."""
     for candidate in (path, *path.parents):
-        if candidate.exists():
-            return candidate
+        try:
+            if candidate.exists():
+                return candidate
+        except PermissionError:
+            continue
     return FilePath(".")  # pragma: no cover - the root exists
 
 
@@ -87,6 +91,13 @@ def check_output_path(output: str | os.PathLike[str]) -> None:
         Not even the probe fits -- exit code 3.
     """
     output = FilePath(output)
+    try:
+        _check_output_path(output)
+    except PermissionError as error:  # a directory on the way that this user may not even search
+        raise OutputNotWritableError(f"cannot reach {output.parent}: {error.strerror}") from None
+
+
+def _check_output_path(output: FilePath) -> None:
     if output.name in ("", ".", ".."):
         raise OutputPathError(f"output {str(output)!r} is not a file name: give the archive's name, e.g. out.nc")
     if output.is_dir():
