@@ -1115,3 +1115,221 @@ def test_a_full_file_system_stops_the_write_in_one_line(tmp_path, capfd, monkeyp
     assert code == 3, err
     assert_one_line(err, r"disk full while writing .*small/out\.nc", r"nothing was written")
     assert left == set()
+
+
+# --- the machinery, proven against independent computations -----------------------------------------
+
+
+def _fletcher32_as_hdf5_writes_it(data: bytes) -> int:
+    """H5_checksum_fletcher32 (HDF5's H5checksum.c), transcribed loop for loop: 16-bit big-endian
+    words summed in blocks of 360 with the sums folded after each block, an odd last byte as a
+    high byte -- the reference for the vectorised form."""
+    length, position, sum1, sum2 = len(data) // 2, 0, 0, 0
+    while length:
+        block = min(length, 360)
+        length -= block
+        for _ in range(block):
+            sum1 = (sum1 + ((data[position] << 8) | data[position + 1])) & 0xFFFFFFFF
+            sum2 = (sum2 + sum1) & 0xFFFFFFFF
+            position += 2
+        sum1 = (sum1 & 0xFFFF) + (sum1 >> 16)
+        sum2 = (sum2 & 0xFFFF) + (sum2 >> 16)
+    if len(data) % 2:
+        sum1 += data[position] << 8
+        sum2 += sum1
+        sum1 = (sum1 & 0xFFFF) + (sum1 >> 16)
+        sum2 = (sum2 & 0xFFFF) + (sum2 >> 16)
+    sum1 = (sum1 & 0xFFFF) + (sum1 >> 16)
+    sum2 = (sum2 & 0xFFFF) + (sum2 >> 16)
+    return (sum2 << 16) | sum1
+
+
+def test_fletcher32_is_hdf5s_checksum_on_every_kind_of_input(rng):
+    """Exact equality (integers): random bytes of odd and even lengths across the 360-word blocks,
+    all zeros (the sums stay 0) and all 0xff (every sum a multiple of 65535: 65535, not 0)."""
+    from ncstab.studies.checksums import fletcher32
+
+    inputs = [bytes(), b"\x01", bytes(720), b"\xff" * 721, b"\xff" * 1440, b"\x00\x01" * 999]
+    inputs += [rng.integers(0, 256, int(n), dtype=np.uint8).tobytes() for n in rng.integers(0, 5000, 60)]
+    for data in inputs:
+        assert fletcher32(data) == _fletcher32_as_hdf5_writes_it(data), len(data)
+
+
+@pytest.mark.parametrize("dtype", ["<f8", "<i4"])
+def test_chunks_encoded_by_ncstab_are_read_back_by_hdf5(dtype, tmp_path, rng):
+    """The bytes a chunked run writes directly (checksum, shuffle, deflate) decode in netCDF to the
+    values, exactly; HDF5's own checksum of a chunk it wrote is ours; a flipped byte is refused."""
+    import netCDF4
+
+    from ncstab.studies.checksums import fletcher32, hdf5_chunk
+
+    values = rng.normal(size=(3, 50)) if dtype == "<f8" else rng.integers(-5, 5, (3, 50))
+    values = values.astype(dtype)
+    path = tmp_path / "chunks.nc"
+    with netCDF4.Dataset(path, "w") as handle:
+        handle.createDimension("a", 3), handle.createDimension("b", 50)
+        for name in ("direct", "plain"):
+            handle.createVariable(name, dtype, ("a", "b"), zlib=True, complevel=1, shuffle=True, fletcher32=True,
+                                  chunksizes=(1, 50))
+        handle["plain"][:] = values
+    with h5py.File(path, "r+") as handle:
+        for row in range(3):
+            handle["direct"].id.write_direct_chunk((row, 0), hdf5_chunk(values[row:row + 1], 1))
+        _, stored = handle["plain"].id.read_direct_chunk((1, 0))
+    import zlib
+
+    raw = zlib.decompress(stored)
+    itemsize = np.dtype(dtype).itemsize
+    unshuffled = np.frombuffer(raw[: 50 * itemsize], np.uint8).reshape(itemsize, 50).T.tobytes() if itemsize == 8 \
+        else np.frombuffer(raw, np.uint8).reshape(itemsize, 51).T.tobytes()
+    assert unshuffled[: 50 * itemsize] == values[1].tobytes()
+    assert int.from_bytes(unshuffled[50 * itemsize:][:4] if itemsize == 4 else raw[-4:], "little") == \
+        fletcher32(values[1].tobytes())
+    with netCDF4.Dataset(path) as handle:
+        np.testing.assert_array_equal(handle["direct"][:], values)
+    flip_byte(path, chunk_offset(path, "direct"))
+    with netCDF4.Dataset(path) as handle, pytest.raises(RuntimeError, match="HDF error"):
+        handle["direct"][:]
+
+
+def test_the_digest_is_what_a_reader_sees_and_nothing_else():
+    """Equal for values read back alike (any NaN, any string width), different for a change of
+    one value, of the shape or of the type."""
+    from ncstab.studies.checksums import variable_digest
+
+    base = np.array([1.0, np.nan, -0.0])
+    other_nan = base.copy()
+    other_nan.view(np.uint64)[1] |= np.uint64(1 << 63)  # a NaN with its sign bit set (0/0 on x86 gives one)
+    assert variable_digest(base) == variable_digest(other_nan)
+    assert variable_digest(np.array(["a", "bc"], dtype="<U9")) == variable_digest(np.array(["a", "bc"]))
+    assert variable_digest(base) != variable_digest(np.array([1.0, np.nan, 0.0]))
+    assert variable_digest(np.arange(6.0)) != variable_digest(np.arange(6.0).reshape(2, 3))
+    assert variable_digest(np.arange(3, dtype="<i8")) != variable_digest(np.arange(3, dtype="<f8"))
+    assert variable_digest(np.array(["ab", "c"])) != variable_digest(np.array(["a", "bc"]))
+
+
+def _text(attribute) -> str:
+    """An HDF5 string attribute as h5py gives it (str, or bytes for a fixed-length one)."""
+    return attribute.decode() if isinstance(attribute, bytes) else str(attribute)
+
+
+def test_every_variable_of_an_archive_is_checked_and_open_study_returns_what_was_written(archive, tmp_path):
+    """Fletcher-32 on the compressed variables, a digest for each of the others: together all of them;
+    what open_study gives is the Dataset written (no checksum attribute in it)."""
+    from ncstab.studies.checksums import DIGEST_ATTRIBUTE, parse_digests
+
+    with h5py.File(archive, "r") as handle:
+        names = [name for name in handle if isinstance(handle[name], h5py.Dataset) and "_Netcdf4" not in name]
+        filtered = {name for name in names if handle[name].fletcher32}
+        digested = set(parse_digests(_text(handle.attrs[DIGEST_ATTRIBUTE])))
+    assert filtered and digested and not filtered & digested
+    assert filtered | digested == set(names)
+    dataset = open_study(archive)
+    assert DIGEST_ATTRIBUTE not in dataset.attrs
+    written = run_study(parse_study(ARCHIVED))
+    written.attrs.pop("created"), dataset.attrs.pop("created")
+    xr.testing.assert_identical(dataset, written)
+
+
+def test_chunked_archives_are_checked_like_the_others(interrupted, capfd):
+    """The archive a chunked run writes: Fletcher-32 on every variable with cases, digests on the rest."""
+    from ncstab.studies.checksums import DIGEST_ATTRIBUTE, parse_digests
+
+    study, out, _, _ = interrupted
+    assert run_cli(["run", study, "-o", out, "--resume"], capfd)[0] == 0
+    with h5py.File(out, "r") as handle:
+        names = {name for name in handle if isinstance(handle[name], h5py.Dataset) and "_Netcdf4" not in name}
+        filtered = {name for name in names if handle[name].fletcher32}
+        digested = set(parse_digests(_text(handle.attrs[DIGEST_ATTRIBUTE])))
+    assert {"u", "F", "stage", "n_steps", "K"} <= filtered and {"status", "message", "law"} <= digested
+    assert filtered | digested == names
+    flip_byte(out, chunk_offset(out, "F"))
+    code, _, err = run_cli(["info", out], capfd)
+    assert code == 2
+    assert_one_line(err, r"variable 'F' cannot be read")
+
+
+GOLDEN = Path(__file__).parent / "golden"
+
+
+@pytest.mark.parametrize("study_file", sorted((GOLDEN / "studies").glob("*.toml")), ids=lambda p: p.stem)
+def test_the_size_estimates_are_below_what_a_run_stores(study_file):
+    """Against the golden archives: each case stores at least the estimated states (a stored state
+    per max_step of driven length, at most: every case of these studies runs to its end), and the
+    archive is larger than the estimate -- by less than 10x (measured: 1.8x to 5.8x)."""
+    from ncstab.studies import load_study
+    from ncstab.studies.preflight import size_estimate
+
+    study = load_study(study_file)
+    estimate = size_estimate(study)
+    dataset = open_study(GOLDEN / f"{study.name}.nc")
+    n_steps = dataset["n_steps"].values
+    assert estimate.cases == n_steps.size
+    assert estimate.mean_states <= n_steps.mean() and estimate.longest_states <= n_steps.max()
+    size = (GOLDEN / f"{study.name}.nc").stat().st_size
+    assert size / 10 < estimate.disk_bytes <= size
+    per_state = sum(v.dtype.itemsize * int(np.prod([n for d, n in v.sizes.items() if d not in n_steps_dims(dataset)
+                                                    and d != "step"]))
+                    for v in dataset.data_vars.values() if "step" in v.dims and v.dtype.kind in "biuf")
+    assert estimate.bytes_per_state == per_state, "the bytes of a state are those of the variables"
+
+
+def n_steps_dims(dataset) -> tuple[str, ...]:
+    return dataset["n_steps"].dims
+
+
+def test_the_memory_of_the_maps_is_that_of_their_arrays(tmp_path):
+    """The grid's estimate is exactly the state maps' bytes; the directions' is at most d2W_dir's."""
+    from ncstab.studies.preflight import map_memory, size_estimate
+
+    text = TINY.replace("[output]", "[map]\ndirections = 36\ngrid = { D1 = [0.0, 0.05, 6], D2 = [-0.01, 0.01, 5] }\n"
+                                    "[output]")
+    study = parse_study(text)
+    dataset = run_study(study)
+    needs = map_memory(study, size_estimate(study), study.n_cases)
+    assert needs["grid"] == sum(dataset[name].nbytes for name in dataset.data_vars if name.startswith("map_")
+                                and name not in ("map_D1", "map_D2"))
+    assert 0 < needs["directions"] <= dataset["d2W_dir"].nbytes
+
+
+def test_what_a_study_file_says_about_its_stages():
+    """Known starts and driven lengths, exactly: from rest, then where each stage leaves its quantities."""
+    from ncstab.studies.stage_extent import stage_extents
+
+    study = parse_study((ROOT_STUDIES / "seed" / "fig09_11_lateral_load.toml").read_text())
+    preload, vertical = stage_extents(study.programme.stages, study.parameters)
+    assert preload.start == {"F1": 0.0, "F2": 0.0} and preload.driven == "F2"
+    np.testing.assert_array_equal(preload.length, [0.0, 0.75])
+    assert not preload.does_nothing  # the case F2_lateral = 0.75 does something
+    assert vertical.start == {}, "D1 moved with the preload; F2 ends at 0 or 0.75: known in no case"
+    assert np.isnan(vertical.length).all() and vertical.measured_from_rest.tolist() == [0.6]
+    green = parse_study((ROOT_STUDIES / "green_paradox.toml").read_text())
+    first, back = stage_extents(green.programme.stages, green.parameters)
+    radius = np.array(green.parameters["radius"])
+    np.testing.assert_allclose(first.length, 2 * np.pi * 3 * radius, rtol=1e-15)  # 3 turns about (r, 0) from rest
+    assert back.start == {"D1": 0.0, "D2": 0.0}, "whole turns come back to where they started"
+
+
+ROOT_STUDIES = Path(__file__).resolve().parents[1] / "studies"
+
+
+@pytest.mark.parametrize("address, expected", [
+    ("127.0.0.1:8786", "tcp://127.0.0.1:8786"),
+    ("tcp://head:8786", "tcp://head:8786"),
+    ("tls://head.example.org:1/", "tls://head.example.org:1"),
+    ("tcp://[::1]:8786", "tcp://[::1]:8786"),
+    (" tcp://node-7:65535 ", "tcp://node-7:65535"),
+])
+def test_scheduler_addresses(address, expected):
+    from ncstab.studies.cluster import scheduler_address
+
+    assert scheduler_address(address) == expected
+
+
+def test_the_lock_is_reentrant_in_its_thread_and_removed_by_the_outermost_holder(tmp_path):
+    with OutputLock(tmp_path / "out.nc") as outer:
+        with OutputLock(tmp_path / "out.nc") as inner:
+            assert inner.stale_pid is None and outer.path.exists()
+        assert outer.path.exists(), "still held by the outer run"
+        assert outer.path.read_text() == f"pid {os.getpid()}\nhost {_hostname()}\n"
+    assert not outer.path.exists()

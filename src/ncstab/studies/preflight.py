@@ -40,6 +40,7 @@ __all__ = [
     "available_memory",
     "check_output_path",
     "free_disk",
+    "map_memory",
     "check_study_size",
     "size_estimate",
 ]
@@ -222,6 +223,26 @@ def available_memory() -> int | None:
         return None
 
 
+def map_memory(study: Study, estimate: SizeEstimate, cases: int) -> dict[str, float]:
+    """Bytes of the ``[map]`` arrays of ``cases`` cases held at once, at least.
+
+    ``"directions"``: ``d2W_dir``, 8 bytes per case, stored state (of the
+    longest case: arrays are padded to it) and direction; ``"grid"``: the
+    state maps, 8 bytes per field, case and grid point (exactly the arrays'
+    size; computing them takes about 4 times more, measured).
+    """
+    from ncstab.operators.state_map import STATE_MAP_FIELDS
+
+    needs: dict[str, float] = {}
+    study_map = study.map
+    if study_map is not None and study_map.directions is not None:
+        needs["directions"] = 8.0 * cases * estimate.longest_states * study_map.directions
+    if study_map is not None and study_map.grid is not None:
+        (_, _, n1), (_, _, n2) = study_map.grid
+        needs["grid"] = 8.0 * len(STATE_MAP_FIELDS) * cases * n1 * n2
+    return needs
+
+
 def _size(value: float) -> str:
     for unit, scale in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
         if value >= scale:
@@ -286,28 +307,26 @@ def check_study_size(
         )
     memory = available_memory()
     in_memory = cases if cases_in_memory is None else min(cases, int(cases_in_memory))
+    needs = map_memory(study, estimate, in_memory)
     study_map = study.map
-    if memory is not None and study_map is not None:
-        if study_map.directions is not None:
-            need = 8.0 * in_memory * estimate.longest_states * study_map.directions
-            if need > memory:
-                raise LimitError(
-                    "[map] directions", _size(need),
-                    f"[map] directions = {study_map.directions}: the directional work d2W_dir of {in_memory:,} "
-                    f"cases x {estimate.longest_states:.0f} states x {study_map.directions} directions needs at "
-                    f"least {_size(need)} of memory, more than the {_size(memory)} available; use fewer "
-                    "directions (or fewer cases per chunk: --chunk-cases)",
-                )
-        if study_map.grid is not None:
-            from ncstab.operators.state_map import STATE_MAP_FIELDS
+    if memory is not None and needs.get("directions", 0.0) > memory:
+        need = needs["directions"]
+        raise LimitError(
+            "[map] directions", _size(need),
+            f"[map] directions = {study_map.directions}: the directional work d2W_dir of {in_memory:,} "
+            f"cases x {estimate.longest_states:.0f} states x {study_map.directions} directions needs at "
+            f"least {_size(need)} of memory, more than the {_size(memory)} available; use fewer "
+            "directions (or fewer cases per chunk: --chunk-cases)",
+        )
+    if memory is not None and needs.get("grid", 0.0) > memory:
+        from ncstab.operators.state_map import STATE_MAP_FIELDS
 
-            (_, _, n1), (_, _, n2) = study_map.grid
-            need = 8.0 * len(STATE_MAP_FIELDS) * in_memory * n1 * n2
-            if need > memory:
-                raise LimitError(
-                    "[map] grid", _size(need),
-                    f"[map] grid of {n1} x {n2} points: the {len(STATE_MAP_FIELDS)} state maps of {in_memory:,} "
-                    f"cases need at least {_size(need)} of memory, more than the {_size(memory)} available; use "
-                    "fewer grid points (or fewer cases per chunk: --chunk-cases)",
-                )
+        need = needs["grid"]
+        (_, _, n1), (_, _, n2) = study_map.grid
+        raise LimitError(
+            "[map] grid", _size(need),
+            f"[map] grid of {n1} x {n2} points: the {len(STATE_MAP_FIELDS)} state maps of {in_memory:,} "
+            f"cases need at least {_size(need)} of memory, more than the {_size(memory)} available; use "
+            "fewer grid points (or fewer cases per chunk: --chunk-cases)",
+        )
     return estimate
