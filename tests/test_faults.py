@@ -180,7 +180,7 @@ def test_a_bad_study_file_exits_2_naming_its_field_and_writes_nothing(
         text = text.replace('names = ["mcnamara"]', 'names = ["cundall_strack"]')
     monkeypatch.chdir(tmp_path)
     study = write_study(tmp_path, text)
-    code, out, err = run_cli(["run", study, "-o", tmp_path / "out.nc"], capfd)
+    code, _, err = run_cli(["run", study, "-o", tmp_path / "out.nc"], capfd)
     assert code == 2, err
     assert_one_line(err, rf"^{study}: {field}")
     assert tree(tmp_path) == {"study.toml"}, "nothing is run or written"

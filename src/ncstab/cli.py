@@ -162,49 +162,55 @@ def _note(study_name: str):
 
 def _run_one(study, output: Path, args: argparse.Namespace) -> bool:
     """Run a study, write its archive and figures; whether some case failed."""
-    from ncstab.plotting import draw_figures
-    from ncstab.studies import open_study_lazily, run_study, run_study_chunked, write_dataset
+    from ncstab.studies import run_study, run_study_chunked, write_dataset
     from ncstab.studies.errors import InvalidInputError, RunError, RunInterrupted
     from ncstab.studies.outputs import claim_output
 
     progress = sys.stderr.isatty() and not args.quiet
     note = _note(study.name)
-    if _runs_in_chunks(study, args):
-        # Large sweeps stream chunk by chunk to the archive: memory bounded by the chunk.
-        try:
-            run_study_chunked(
-                study, output, chunk_cases=args.chunk_cases, resume=args.resume, workers=args.workers,
-                scheduler=args.scheduler, progress=progress, overwrite=args.overwrite,
-                scheduler_timeout=args.scheduler_timeout, notify=note,
-            )
-        except ImportError as error:
-            raise InvalidInputError(str(error)) from None
-    else:
-        with claim_output(output, overwrite=args.overwrite, notify=note):
+    # The lock covers the run, the archive, its parts and its figures.
+    with claim_output(output, resume=args.resume, overwrite=args.overwrite, notify=note):
+        if _runs_in_chunks(study, args):
+            # Large sweeps stream chunk by chunk to the archive: memory bounded by the chunk.
+            try:
+                run_study_chunked(
+                    study, output, chunk_cases=args.chunk_cases, resume=args.resume, workers=args.workers,
+                    scheduler=args.scheduler, progress=progress, overwrite=args.overwrite,
+                    scheduler_timeout=args.scheduler_timeout, notify=note,
+                )
+            except ImportError as error:
+                raise InvalidInputError(str(error)) from None
+        else:
             try:
                 write_dataset(run_study(study, progress=progress), output)
             except (RunError, RunInterrupted) as error:
                 error.kept = error.kept or f"nothing was written to {output}"
                 raise
-    try:
-        with open_study_lazily(output) as dataset:
-            figures = draw_figures(dataset, output.parent, stem=output.stem)
-            summary = _status_summary(dataset)
-    except (RunError, RunInterrupted) as error:
-        error.kept = error.kept or f"the archive {output} was written, its figures were not all drawn"
-        raise
-    except (OSError, RuntimeError, ValueError) as error:
-        from ncstab.studies.errors import WriteError, write_error
-
-        named = write_error(error, output.parent) or WriteError(f"could not draw the figures: {error}")
-        named.kept = f"the archive {output} was written, its figures were not all drawn (ncstab plot {output})"
-        raise named from error
+        figures, summary = _draw(output)
     print(f"{study.name}: wrote {output}")
     for figure in figures:
         print(f"  figure {figure}")
     for line in summary:
         print(line)
     return any(line.startswith("  FAILED") for line in summary)
+
+
+def _draw(output: Path) -> tuple[list[Path], list[str]]:
+    """The figures of a written archive, and its status summary."""
+    from ncstab.plotting import draw_figures
+    from ncstab.studies import open_study_lazily
+    from ncstab.studies.errors import RunError, RunInterrupted, WriteError, write_error
+
+    try:
+        with open_study_lazily(output) as dataset:
+            return draw_figures(dataset, output.parent, stem=output.stem), _status_summary(dataset)
+    except (RunError, RunInterrupted) as error:
+        error.kept = error.kept or f"the archive {output} was written, its figures were not all drawn"
+        raise
+    except (OSError, RuntimeError, ValueError) as error:
+        named = write_error(error, output.parent) or WriteError(f"could not draw the figures: {error}")
+        named.kept = f"the archive {output} was written, its figures were not all drawn (ncstab plot {output})"
+        raise named from error
 
 
 def command_run(args: argparse.Namespace) -> int:

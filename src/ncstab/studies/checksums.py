@@ -89,7 +89,7 @@ def _shuffle(data: bytes, itemsize: int) -> bytes:
     over (``len(data) % itemsize``) are copied at the end as they are.
     Nothing is shuffled for items of one byte or a buffer of one item.
     """
-    count, leftover = divmod(len(data), itemsize)
+    count = len(data) // itemsize
     if itemsize <= 1 or count <= 1:
         return data
     body = np.frombuffer(data, dtype=np.uint8, count=count * itemsize).reshape(count, itemsize)

@@ -45,7 +45,7 @@ import shutil
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path as FilePath
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from ncstab.paths.api import CaseRange, ParameterGrid, case_batch
 from ncstab.paths.engine import follow_cases

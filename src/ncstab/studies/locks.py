@@ -109,8 +109,7 @@ class OutputLock:
         """
         held = _HELD.get(self._key)
         if held is not None:
-            held[1] += 1
-            self.stale_pid = held[0].stale_pid
+            held[1] += 1  # (a stale lock was taken over, and said, by the outer holder)
             return self
         host = socket.gethostname()
         while True:
