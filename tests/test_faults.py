@@ -1155,6 +1155,18 @@ def test_fletcher32_is_hdf5s_checksum_on_every_kind_of_input(rng):
         assert fletcher32(data) == _fletcher32_as_hdf5_writes_it(data), len(data)
 
 
+def test_fletcher32_of_a_chunk_larger_than_a_block_is_what_hdf5_stores(tmp_path, rng):
+    """9.6 MB (more than the 2^22 words summed at once): the checksum HDF5 appended to the chunk."""
+    from ncstab.studies.checksums import fletcher32
+
+    values = rng.normal(size=1_200_001)
+    with h5py.File(tmp_path / "big.h5", "w") as handle:
+        handle.create_dataset("x", data=values, chunks=values.shape, fletcher32=True)
+        _, stored = handle["x"].id.read_direct_chunk((0,))
+    assert stored[:-4] == values.tobytes()
+    assert fletcher32(values.tobytes()) == int.from_bytes(stored[-4:], "little")
+
+
 @pytest.mark.parametrize("dtype", ["<f8", "<i4"])
 def test_chunks_encoded_by_ncstab_are_read_back_by_hdf5(dtype, tmp_path, rng):
     """The bytes a chunked run writes directly (checksum, shuffle, deflate) decode in netCDF to the
