@@ -121,14 +121,18 @@ BAD_STUDIES = [
     ("stage-unknown-event", "drive = { D1 = 0.05 }", 'drive = { D1 = 0.05 }\nstop_at = ["hill"]',
      r"loading\[1\]\.stop_at: unknown event 'hill' \(did you mean 'hill_loss'\?\)"),
     ("stage-drive-to-rest", "drive = { D1 = 0.05 }", "drive = { D1 = 0.0 }",
-     r"loading\[1\]\.drive\.D1: drives D1 to 0, the value it already has \(at rest\)"),
-    ("stage-drive-to-where-it-is", "drive = { D1 = 0.05 }",
-     "drive = { D1 = 0.05 }\n[[loading]]\nhold = { F2 = 0.0 }\ndrive = { D1 = 0.05 }",
-     r"loading\[2\]\.drive\.D1: drives D1 to 0\.05, the value it already has \(where stage 1 leaves it\)"),
+     r"loading\[1\]\.drive\.D1: drives D1 to 0, the value it already has \(at rest\): the study would compute "
+     "nothing"),
+    ("stages-drive-to-where-they-are", "drive = { D1 = 0.05 }",
+     "drive = { D1 = 0.0 }\n[[loading]]\nhold = { D1 = 0.0 }\ndrive = { F2 = 0.0 }",
+     r"loading\[1\]\.drive\.D1: drives D1 to 0, .* \(at rest\) and so does every later stage"),
     ("stage-drive-swept-to-rest", "drive = { D1 = 0.05 }", 'drive = { F1 = "F_end" }',
      r"loading\[1\]\.drive\.F1: drives F1 to 0"),
     ("cycle-zero-radius", "hold = { F2 = 0.0 }\ndrive = { D1 = 0.05 }", "cycle = { center = [0.0, 0.0], turns = 1 }",
-     r"loading\[1\]\.cycle\.center: .*radius 0"),
+     r"loading\[1\]\.cycle\.center: .*\(\[0, 0\], at rest\): a circle of radius 0"),
+    ("cycle-zero-radius-after-a-stage", "hold = { F2 = 0.0 }\ndrive = { D1 = 0.05 }",
+     "hold = { D2 = 0.0 }\ndrive = { D1 = 0.02 }\n[[loading]]\ncycle = { center = [0.02, 0.0] }",
+     r"loading\[2\]\.cycle\.center: .*\(\[0\.02, 0\], where stage 1 leaves it\): a circle of radius 0"),
     ("cycle-zero-turns", "hold = { F2 = 0.0 }\ndrive = { D1 = 0.05 }", "cycle = { center = [0.01, 0.0], turns = 0 }",
      r"loading\[1\]\.cycle\.turns"),
     ("cycle-direction", "hold = { F2 = 0.0 }\ndrive = { D1 = 0.05 }",
@@ -1345,3 +1349,49 @@ def test_the_lock_is_reentrant_in_its_thread_and_removed_by_the_outermost_holder
         assert outer.path.exists(), "still held by the outer run"
         assert outer.path.read_text() == f"pid {os.getpid()}\nhost {_hostname()}\n"
     assert not outer.path.exists()
+
+
+def test_a_second_signal_during_the_cleanup_stops_at_once_with_one_line():
+    """The first SIGINT raises (the cleanup runs); a second one during that cleanup exits 3 at once."""
+    code = (
+        "import os, signal, time\n"
+        "from ncstab.studies.errors import RunInterrupted\n"
+        "from ncstab.studies.interrupts import stop_on_signals\n"
+        "with stop_on_signals('ncstab run'):\n"
+        "    try:\n"
+        "        os.kill(os.getpid(), signal.SIGINT)\n"
+        "        time.sleep(10)\n"
+        "    except RunInterrupted:\n"
+        "        os.kill(os.getpid(), signal.SIGTERM)  # a slow cleanup, interrupted again\n"
+        "        time.sleep(10)\n"
+        "raise SystemExit(0)\n"
+    )
+    child = _python(code)
+    _, err = child.communicate(timeout=60)
+    assert child.returncode == 3
+    assert_one_line(err, r"^ncstab run: SIGTERM again: stopped at once \(temporary files are removed by the next run")
+
+
+def test_a_stage_that_moves_nothing_among_stages_that_do_is_accepted(tmp_path, capfd):
+    """A preload of 0 before a driven stage is skipped by the engine: the study does what it says."""
+    study = write_study(tmp_path, TINY.replace("hold = { F2 = 0.0 }\ndrive = { D1 = 0.05 }",
+                                               "hold = { F1 = 0.0 }\ndrive = { F2 = 0.0 }\n[[loading]]\n"
+                                               'hold = { F2 = "current" }\ndrive = { D1 = 0.05 }'))
+    code, out, err = run_cli(["run", study, "-o", tmp_path / "out.nc"], capfd)
+    assert (code, err) == (0, "") and "finished: 2" in out
+    assert int(open_study(tmp_path / "out.nc")["n_steps"].min()) > 1
+
+
+def test_an_archive_of_a_path_followed_from_python_is_readable(tmp_path):
+    """No study file behind it (its 'study' attribute is empty): still a readable archive."""
+    import ncstab
+
+    path = ncstab.follow(ncstab.SystemSpec(secondary_contacts="ignore"), "mcnamara",
+                         [{"hold": {"F2": 0.0}, "drive": {"D1": 0.05}}], {"gamma": 0.5, "alpha0": np.pi / 4},
+                         ncstab.PathOptions(max_step=0.05))
+    dataset = path.to_dataset()
+    assert dataset.attrs["study"] == ""
+    write_dataset(dataset, tmp_path / "path.nc")
+    from ncstab.studies.archive import normalise_dataset
+
+    xr.testing.assert_identical(open_study(tmp_path / "path.nc"), normalise_dataset(dataset))

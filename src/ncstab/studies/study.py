@@ -882,34 +882,41 @@ def _check_law_spellings(names: Sequence[str], definitions: Sequence[LawDefiniti
 def _check_stages_do_something(
     programme: LoadingProgramme, parameters: Mapping[str, Any], errors: _Errors
 ) -> None:
-    """A stage known to drive nothing in every case is an error (the study would compute nothing).
+    """A study known, from the file alone, to compute nothing or to fail every case is an error.
 
-    Known from the file alone (:func:`~ncstab.studies.stage_extent.stage_extents`):
+    Known from the file (:func:`~ncstab.studies.stage_extent.stage_extents`):
     from rest every displacement and force is 0, and a stage that ends leaves
-    its driven quantity at its target and its held ones at their values.  A
-    linear stage whose target is that value for every case, or a cycle whose
-    centre is the point it starts from (radius 0), is refused.
+    its driven quantity at its target and its held ones at their values.
+    Refused: a programme whose every linear stage drives its quantity to the
+    value it already has, in every case (the study would store no state and
+    "finish"), and a cycle whose centre is the point it starts from (radius 0:
+    the path engine fails every case there).  A stage that moves nothing
+    among stages that do (a preload of 0) is accepted: it is skipped.
     """
     from ncstab.studies.stage_extent import stage_extents
 
-    for number, (stage, extent) in enumerate(zip(programme.stages, stage_extents(programme.stages, parameters)), 1):
-        if not extent.does_nothing:
-            continue
+    extents = stage_extents(programme.stages, parameters)
+    linear = []
+    for number, (stage, extent) in enumerate(zip(programme.stages, extents), 1):
         where = "at rest" if number == 1 else f"where stage {number - 1} leaves it"
-        if isinstance(stage, CycleStage):
+        if not isinstance(stage, CycleStage):
+            linear.append((number, extent, where))
+        elif extent.does_nothing:
             start = ", ".join(f"{extent.start[d]:g}" for d in extent.driven.split(","))
             errors.add(
                 f"loading[{number}].cycle.center",
                 f"the centre is the point the cycle starts from ([{start}], {where}): a circle of radius 0; "
                 "give a centre away from it",
             )
-        else:
-            name = extent.driven
-            errors.add(
-                f"loading[{number}].drive.{name}",
-                f"drives {name} to {extent.start[name]:g}, the value it already has ({where}): the stage would "
-                "compute nothing; give another target or remove the stage",
-            )
+    if linear and len(linear) == len(extents) and all(extent.does_nothing for _, extent, _ in linear):
+        number, extent, where = linear[0]
+        name = extent.driven
+        others = " and so does every later stage" if len(linear) > 1 else ""
+        errors.add(
+            f"loading[{number}].drive.{name}",
+            f"drives {name} to {extent.start[name]:g}, the value it already has ({where}){others}: the study "
+            "would compute nothing; give another target",
+        )
 
 
 def _error_order(error: tuple[str, str]) -> tuple[int, int]:

@@ -114,7 +114,8 @@ def check_archive(dataset: "xr.Dataset", path: str | os.PathLike[str]) -> None:
 
     * the variables ``status``, ``message``, ``n_steps`` and the coordinate
       ``law``, ``status`` and ``n_steps`` over the same dimensions, ``law`` first;
-    * the attribute ``study`` is a valid study file (it parses);
+    * the attribute ``study`` is a valid study file (it parses), or empty (a
+      Dataset of :func:`ncstab.follow`, written from Python);
     * 0 <= ``n_steps`` <= the length of ``step`` (0 without ``step``);
     * every status is ``finished``, ``stopped:<event>`` or ``failed:<reason>``;
     * the ``figures`` attribute, if any, names figure kinds ncstab draws.
@@ -140,7 +141,8 @@ def check_archive(dataset: "xr.Dataset", path: str | os.PathLike[str]) -> None:
     if not isinstance(study, str):
         raise ArchiveError(path, "no 'study' attribute (the study file it was run from)")
     try:
-        parse_study(study, "<archive>")
+        if study:  # "": a path followed from Python (ncstab.follow), without a study file
+            parse_study(study, "<archive>")
     except StudyFileError as error:
         field, message = error.errors[0]
         raise ArchiveError(path, f"its 'study' attribute is not a valid study file ({field}: {message})") from None
