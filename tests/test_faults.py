@@ -3,9 +3,12 @@
 Every case asserts the exit code (0 success, 1 some case failed, 2 invalid input
 with nothing run or written, 3 the run could not complete: docs/when-things-go-wrong.md),
 exactly one line on stderr naming what is wrong, no "Traceback", and what is
-left on disk.  The command runs in this process (``ncstab.cli.main``) except
-where the fault needs a process of its own (``test_faults_processes.py``:
-signals to a process group, a killed run, a real dask scheduler, another user).
+left on disk.  The command runs in this process (``ncstab.cli.main``; signals are
+sent to this process) except where the fault needs a process of its own (the
+section "faults that need a process of their own": a process group's Ctrl-C, a
+killed run, a real dask scheduler, another user, a tmpfs in a mount namespace).
+The last section proves the machinery the catalogue relies on (checksums, size
+estimates, locks) against independent computations.
 """
 
 from __future__ import annotations
