@@ -77,8 +77,8 @@ def law_definition(
     Raises
     ------
     ValueError
-        For an unknown law or modifier; the message lists the catalogue and a
-        close match when there is one.
+        For an unknown law or modifier (the message lists the catalogue and a
+        close match when there is one), or a modifier given twice.
     """
     known = dict(user_laws or {})
     if not isinstance(name, str) or not name.strip():
@@ -92,11 +92,16 @@ def law_definition(
         user = f"; user laws: {', '.join(known)}" if known else ""
         raise ValueError(f"unknown law {base!r}{hint}; {_catalogue_text()}{user}")
     definition = known[base] if base in known else LAWS[base]
-    for modifier in modifiers:
+    for k, modifier in enumerate(modifiers):
         if modifier not in MODIFIERS:
             close = difflib.get_close_matches(modifier, MODIFIERS, n=1)
             hint = f" (did you mean {close[0]!r}?)" if close else ""
             raise ValueError(f"unknown law modifier {modifier!r} in {name!r}{hint}; {_catalogue_text()}")
+        if modifier in modifiers[:k]:
+            raise ValueError(
+                f"modifier {modifier!r} is given twice in {name!r}: a modifier applies once "
+                f"(write {'+'.join([base, *dict.fromkeys(modifiers)])!r})"
+            )
         if definition.energy is not None and DELTA not in definition.energy.free_symbols:
             # An energy not written through delta (a user law's) cannot follow the bracket of
             # the modifier: it is dropped, and the bracketed law's energy, if any, is derived.

@@ -6,10 +6,14 @@ A study file (TOML, ``docs/study-files.md``) is validated into a :class:`Study`
 written atomically to NetCDF (:func:`write_dataset`) and read back identical
 (:func:`open_study`, ``docs/archive.md``).  Large sweeps run in chunks, resumable
 and optionally on a dask cluster (:func:`run_study_chunked`, ``docs/scale.md``).
+What can go wrong is a named error with an exit code (:mod:`ncstab.studies.errors`,
+``docs/when-things-go-wrong.md``): an archive that is not readable
+(:class:`ArchiveError`), an output in use, a full disk, a lost cluster...
 """
 
 from ncstab.studies.archive import normalise_dataset, open_study, open_study_lazily, write_dataset
-from ncstab.studies.chunked import ResumeError, run_study_chunked
+from ncstab.studies.chunked import run_study_chunked
+from ncstab.studies.errors import ArchiveError, InvalidInputError, NcstabError, ResumeError, RunError, RunInterrupted
 from ncstab.studies.expressions import ExpressionError, evaluate_expression
 from ncstab.studies.run import default_output_path, run_study
 from ncstab.studies.study import (
@@ -22,10 +26,15 @@ from ncstab.studies.study import (
 )
 
 __all__ = [
+    "ArchiveError",
     "DEFAULT_FIGURES",
     "FIGURE_KINDS",
     "ExpressionError",
+    "InvalidInputError",
+    "NcstabError",
     "ResumeError",
+    "RunError",
+    "RunInterrupted",
     "Study",
     "StudyFileError",
     "default_output_path",

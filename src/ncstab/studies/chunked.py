@@ -27,30 +27,52 @@ operations whatever its batch.
 Memory is bounded by the chunk size whatever the sweep size: the process holds
 one chunk's Dataset at a time, and on dask at most two chunks per worker are in
 flight.
+
+A run holds the output's lock (:func:`~ncstab.studies.outputs.claim_output`)
+from start to end; it never discards the finished parts of an earlier run
+unless asked (``resume`` keeps them, ``overwrite`` discards them).  What stops
+a run is a named error (:mod:`ncstab.studies.errors`) saying what is kept:
+a full disk, an unreachable or lost cluster, an interrupt.
 """
 
 from __future__ import annotations
 
 import contextlib
 import gc
-import hashlib
-import json
 import math
-import multiprocessing
 import os
 import shutil
-import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path as FilePath
-from typing import TYPE_CHECKING, Any
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from ncstab.paths.api import CaseRange, ParameterGrid, case_batch
 from ncstab.paths.stepper import follow_cases
 from ncstab.paths.result import PathResult
 from ncstab.studies.archive import atomic_destination, open_study
+from ncstab.studies.cluster import (
+    DEFAULT_SCHEDULER_TIMEOUT,
+    DISTRIBUTED_MISSING,
+    cluster_client,
+    distributed_module,
+    on_cluster,
+    scheduler_address,
+)
+from ncstab.studies.errors import ArchiveError, ResumeError, RunError, RunInterrupted
+from ncstab.studies.outputs import ARCHIVE_IN_PROGRESS, claim_output, finished_parts, parts_directory
+from ncstab.studies.parts import (
+    MANIFEST,
+    PARTS_FORMAT,
+    DamagedPart,
+    create_parts,
+    read_kept_part,
+    read_part,
+    resumed_chunk_size,
+    study_digest,
+    write_part,
+    writing,
+)
 from ncstab.studies.run import study_dataset
 from ncstab.studies.streaming import (
     BLOCK_CASES,
@@ -66,6 +88,10 @@ if TYPE_CHECKING:  # pragma: no cover
 
 __all__ = [
     "DEFAULT_CHUNK_CASES",
+    "DEFAULT_SCHEDULER_TIMEOUT",
+    "DISTRIBUTED_MISSING",
+    "MANIFEST",
+    "PARTS_FORMAT",
     "Chunk",
     "ResumeError",
     "archive_layout",
@@ -74,6 +100,7 @@ __all__ = [
     "plan_chunks",
     "run_chunk",
     "run_study_chunked",
+    "scheduler_address",
     "study_cases",
     "study_digest",
 ]
@@ -89,35 +116,6 @@ DEFAULT_CHUNK_CASES = 8192
 MIN_DEFAULT_CHUNK_CASES = 256
 #: Chunks per worker a default chunk size aims at on a dask cluster (balance).
 CHUNKS_PER_WORKER = 4
-#: Chunks in flight per worker on a dask cluster: one computing, one waiting
-#: (bounds the memory of finished chunks not yet appended).
-IN_FLIGHT_PER_WORKER = 2
-#: Version of the part-file layout (stored in the manifest).
-PARTS_FORMAT = 3
-#: Modules a local cluster's forkserver imports before starting workers.
-WORKER_PRELOAD = ("distributed", "xarray", "ncstab.studies.chunked")
-MANIFEST = "manifest.json"
-#: The archive being written, inside the parts directory until it is complete.
-ARCHIVE_IN_PROGRESS = "archive.nc.tmp"
-#: Message of the error raised when dask.distributed is needed but missing.
-DISTRIBUTED_MISSING = (
-    "running on a dask cluster (--workers / --scheduler) needs dask.distributed: "
-    "pip install ncstab[distributed]"
-)
-
-
-class ResumeError(ValueError):
-    """The parts of an interrupted run do not belong to this study or chunking.
-
-    Attributes
-    ----------
-    field
-        What differs (``"study"``, ``"chunk_cases"``, ``"format"``, ``"part"``).
-    """
-
-    def __init__(self, field: str, message: str) -> None:
-        super().__init__(message)
-        self.field = field
 
 
 @dataclass(frozen=True)
@@ -159,67 +157,6 @@ def plan_chunks(study: Study, chunk_cases: int) -> list[Chunk]:
     """
     runs = archive_layout(study, chunk_cases).runs(int(chunk_cases))
     return [Chunk(law, index, start, stop) for law in study.laws for index, (start, stop) in enumerate(runs)]
-
-
-def study_digest(study: Study) -> str:
-    """SHA-256 of the study text: parts are only ever combined for the same study."""
-    return hashlib.sha256(study.text.encode("utf-8")).hexdigest()
-
-
-def parts_directory(output: str | os.PathLike[str]) -> FilePath:
-    """Where the parts of the archive ``output`` are kept while it is computed: ``<output>.parts``."""
-    output = FilePath(output)
-    return output.with_name(output.name + ".parts")
-
-
-def _prepare_parts(directory: FilePath, study: Study, chunk_cases: int | None, resume: bool) -> int:
-    """Create (or, on resume, check) the parts directory; the chunk size to use."""
-    manifest_path = directory / MANIFEST
-    if resume and manifest_path.exists():
-        manifest = json.loads(manifest_path.read_text())
-        if manifest.get("format") != PARTS_FORMAT:
-            raise ResumeError("format", f"{directory}: parts of another ncstab version; remove the directory")
-        if manifest.get("study_sha256") != study_digest(study):
-            raise ResumeError(
-                "study",
-                f"{directory}: the parts belong to another version of study {manifest.get('study_name')!r}; "
-                "run without --resume to start over",
-            )
-        if chunk_cases is not None and chunk_cases != manifest["chunk_cases"]:
-            raise ResumeError(
-                "chunk_cases",
-                f"{directory}: the parts were written with chunk_cases = {manifest['chunk_cases']}, "
-                f"not {chunk_cases}; resume with the same chunk size (or none)",
-            )
-        for stale in [*directory.glob(".*"), directory / ARCHIVE_IN_PROGRESS]:
-            stale.unlink(missing_ok=True)  # temporaries of the killed run
-        return int(manifest["chunk_cases"])
-    chunk_cases = DEFAULT_CHUNK_CASES if chunk_cases is None else int(chunk_cases)
-    if chunk_cases < 1:
-        raise ValueError(f"chunk_cases must be at least 1, got {chunk_cases}")
-    if directory.exists():
-        shutil.rmtree(directory)
-    directory.mkdir(parents=True)
-    manifest = {
-        "format": PARTS_FORMAT,
-        "study_name": study.name,
-        "study_sha256": study_digest(study),
-        "chunk_cases": chunk_cases,
-    }
-    with atomic_destination(directory / MANIFEST, ".part") as temporary:
-        temporary.write_text(json.dumps(manifest, indent=1))
-    return chunk_cases
-
-
-def _distributed() -> Any:
-    """The ``distributed`` module, or an ImportError saying how to install it."""
-    try:
-        import distributed
-    except ImportError as error:
-        raise ImportError(DISTRIBUTED_MISSING) from error
-    return distributed
-
-
 
 
 def study_cases(study: Study) -> int:
@@ -273,91 +210,6 @@ def run_chunk(study: Study, law: str, start: int, stop: int) -> "xr.Dataset":
     return study_dataset(study, path)
 
 
-def _json_attribute(value: Any) -> Any:
-    if isinstance(value, np.ndarray):
-        return {"__ndarray__": value.tolist(), "dtype": value.dtype.str}
-    return value
-
-
-def _attribute_from_json(value: Any) -> Any:
-    if isinstance(value, dict) and "__ndarray__" in value:
-        return np.asarray(value["__ndarray__"], dtype=value["dtype"])
-    return value
-
-
-def _write_part(directory: FilePath, chunk: Chunk, digest: str, encoded: EncodedChunk) -> None:
-    """Keep an encoded chunk as ``directory/<law>_<k>.npz``, atomically.
-
-    The compressed HDF5 chunks as one byte array, the text variables and the
-    template's arrays as they are (no pickle); names, offsets, dimensions and
-    attributes in a JSON header.  Parts are only ncstab's own scratch, read
-    back by :func:`_read_part`.
-    """
-    template = encoded.template
-    header = {
-        "study_sha256": digest,
-        "law": encoded.law,
-        "start": encoded.start,
-        "stop": encoded.stop,
-        "steps": encoded.steps,
-        "chunks": [[name, list(offset), len(data)] for name, offset, data in encoded.chunks],
-        "strings": list(encoded.strings),
-        "attrs": {k: _json_attribute(v) for k, v in template.attrs.items()},
-        "variables": {
-            name: {
-                "dims": list(variable.dims),
-                "attrs": {k: _json_attribute(v) for k, v in variable.attrs.items()},
-                "coordinate": name in template.coords,
-            }
-            for name, variable in template.variables.items()
-        },
-    }
-    arrays = {f"variable_{k}": variable.values for k, variable in enumerate(template.variables.values())}
-    arrays.update({f"string_{k}": values for k, values in enumerate(encoded.strings.values())})
-    blob = np.frombuffer(b"".join(data for _, _, data in encoded.chunks), dtype=np.uint8)
-    with atomic_destination(directory / chunk.file_name, ".part") as temporary, open(temporary, "wb") as handle:
-        np.savez(handle, header=np.array(json.dumps(header)), chunks=blob, **arrays)
-
-
-def _read_part(directory: FilePath, chunk: Chunk, digest: str) -> EncodedChunk:
-    import xarray as xr
-
-    path = directory / chunk.file_name
-    with np.load(path, allow_pickle=False) as stored:
-        header = json.loads(str(stored["header"]))
-        if header["study_sha256"] != digest:
-            raise ResumeError("part", f"{path} belongs to another study")
-        if (header["law"], header["start"], header["stop"]) != (chunk.law, chunk.start, chunk.stop):
-            raise ResumeError(
-                "part",
-                f"{path} holds cases {header['start']}:{header['stop']} of {header['law']}, "
-                f"expected {chunk.start}:{chunk.stop} of {chunk.law}",
-            )
-        variables = {
-            name: xr.Variable(
-                spec["dims"],
-                stored[f"variable_{k}"],
-                {key: _attribute_from_json(v) for key, v in spec["attrs"].items()},
-            )
-            for k, (name, spec) in enumerate(header["variables"].items())
-        }
-        strings = {name: stored[f"string_{k}"] for k, name in enumerate(header["strings"])}
-        blob = stored["chunks"].tobytes()
-    coordinates = {name: v for name, v in variables.items() if header["variables"][name]["coordinate"]}
-    data = {name: v for name, v in variables.items() if name not in coordinates}
-    attrs = {key: _attribute_from_json(v) for key, v in header["attrs"].items()}
-    chunks = []
-    position = 0
-    for name, offset, length in header["chunks"]:
-        chunks.append((name, tuple(offset), blob[position : position + length]))
-        position += length
-    return EncodedChunk(
-        law=header["law"], start=header["start"], stop=header["stop"], steps=header["steps"],
-        template=xr.Dataset(data, coords=coordinates, attrs=attrs),
-        chunks=chunks, strings=strings,
-    )
-
-
 def encode_study_chunk(study: Study, chunk: Chunk, layout: BlockLayout, dataset: "xr.Dataset") -> EncodedChunk:
     """A chunk's Dataset (:func:`run_chunk`) compressed into the archive's HDF5 chunks."""
     sweep = tuple(ParameterGrid.from_mapping(study.parameters).sweep)
@@ -377,94 +229,16 @@ def compute_part(
     encoded = encode_study_chunk(study, chunk, layout, run_chunk(study, chunk.law, chunk.start, chunk.stop))
     if directory is None:
         return encoded
-    _write_part(FilePath(directory), chunk, digest, encoded)
+    write_part(FilePath(directory), chunk, digest, encoded)
     return None
 
 
-def _worker_start_method() -> str:
-    """How a local cluster starts its worker processes: ``forkserver`` where the
-    platform has it, from a server that has imported ncstab once (its workers
-    start with every module loaded: measured, about 2 s less per run on 2
-    workers, and no import in each worker), else ``spawn``.
-
-    The server is a fresh single-threaded process, so forking it is safe,
-    unlike forking this one (``fork``).  If a forkserver is already running in
-    this process it is used as it is.
-    """
-    if "forkserver" not in multiprocessing.get_all_start_methods():
-        return "spawn"
-    from multiprocessing import forkserver
-
-    multiprocessing.get_context("forkserver").set_forkserver_preload(list(WORKER_PRELOAD))
-    forkserver.ensure_running()
-    return "forkserver"
-
-
-@contextlib.contextmanager
-def _cluster_client(workers: int | None, scheduler: str | None) -> Iterator[Any]:
-    """A dask.distributed Client: on a new local cluster of ``workers`` processes, or on ``scheduler``."""
-    distributed = _distributed()
-    with contextlib.ExitStack() as stack:
-        address: Any = scheduler
-        if scheduler is None:
-            # Workers' scratch space in a directory of its own, removed with the cluster.
-            scratch = stack.enter_context(tempfile.TemporaryDirectory(prefix="ncstab-dask-"))
-            import dask
-
-            stack.enter_context(
-                dask.config.set(
-                    {
-                        "temporary-directory": scratch,
-                        "distributed.worker.multiprocessing-method": _worker_start_method(),
-                        # The statistical profiler samples every worker's stack each 10 ms
-                        # (for the dashboard): measured, about 10 % of a chunk's time.
-                        "distributed.worker.profile.enabled": False,
-                    }
-                )
-            )
-            address = stack.enter_context(
-                distributed.LocalCluster(
-                    n_workers=int(workers),  # type: ignore[arg-type]
-                    threads_per_worker=1,
-                    processes=True,
-                    dashboard_address=":0",  # a free port: never "port 8787 is in use"
-                    local_directory=scratch,
-                )
-            )
-        yield stack.enter_context(distributed.Client(address))
-
-
-def _on_cluster(
-    client: Any, study: Study, chunks: list[Chunk], layout: BlockLayout, directory: FilePath, digest: str,
-    shared: bool,
-) -> Iterator[tuple[Chunk, EncodedChunk | None]]:
-    """Run the chunks on a dask cluster, a bounded number in flight; yield each as it finishes."""
-    distributed = _distributed()
-    slots = max(1, IN_FLIGHT_PER_WORKER * sum(client.nthreads().values()))
-    pending = iter(chunks)
-    futures: dict[Any, Chunk] = {}
-    where = str(directory) if shared else None
-
-    def submit() -> Any:
-        """Submit the next chunk; its future, or None when every chunk is submitted."""
-        chunk = next(pending, None)
-        if chunk is None:
-            return None
-        future = client.submit(compute_part, study, chunk, layout, where, digest, pure=False)
-        futures[future] = chunk
-        return future
-
-    queue = distributed.as_completed([f for f in (submit() for _ in range(slots)) if f is not None])
-    for future in queue:
-        chunk = futures.pop(future)
-        following = submit()
-        if following is not None:
-            queue.add(following)
-        result = future.result()
-        future.release()
-        del future
-        yield chunk, result
-        del result  # not held while the next chunk is awaited
+def _kept(output: FilePath, chunks: list[Chunk]) -> str:
+    """What an interrupted run leaves for the next one, in words."""
+    done = len(finished_parts(output))
+    if done == 0:
+        return "no chunk was finished"
+    return f"{done} of {len(chunks)} chunks kept in {parts_directory(output)}: rerun with --resume to compute the rest"
 
 
 def run_study_chunked(
@@ -475,6 +249,9 @@ def run_study_chunked(
     workers: int | None = None,
     scheduler: str | None = None,
     progress: bool = False,
+    overwrite: bool = False,
+    scheduler_timeout: float = DEFAULT_SCHEDULER_TIMEOUT,
+    notify: Callable[[str], None] | None = None,
 ) -> FilePath:
     """Run a study in chunks, each kept on disk and appended to the archive as it finishes.
 
@@ -490,13 +267,14 @@ def run_study_chunked(
         A validated study (:func:`~ncstab.studies.load_study`).
     output
         The archive to write (``.nc``); while it is computed, its chunks and
-        the archive in progress are kept in ``<output>.parts``, removed at the end.
+        the archive in progress are kept in ``<output>.parts``, removed at the
+        end, and the run holds the lock ``<output>.lock``.
     chunk_cases
         At most this many cases per chunk (default :func:`default_chunk_cases`;
         on resume, the interrupted run's).
     resume
         Keep the parts an interrupted run of the same study left, and compute
-        only the missing chunks.  Without it, leftover parts are discarded.
+        only the missing chunks (a damaged part is computed again).
     workers
         Run the chunks on a local dask cluster of this many single-threaded
         worker processes (needs ``ncstab[distributed]``).
@@ -504,6 +282,14 @@ def run_study_chunked(
         Address of an existing dask.distributed scheduler to run the chunks on.
     progress
         Show a progress bar (cases of finished chunks / cases).
+    overwrite
+        Discard the finished parts of an earlier run and start over.  Without
+        it (or ``resume``), finished parts are never deleted: the run is refused.
+    scheduler_timeout
+        Seconds to wait for the scheduler to answer.
+    notify
+        Called with a line when a stale lock is taken over, temporaries of a
+        killed run are removed, or a damaged part is computed again.
 
     Returns
     -------
@@ -514,6 +300,16 @@ def run_study_chunked(
     ------
     ResumeError
         ``resume`` with parts of another study or another chunk size.
+    PartsExistError
+        Finished parts on disk, and neither ``resume`` nor ``overwrite``.
+    OutputLockedError
+        Another run holds the output's lock.
+    SchedulerAddressError, ClusterError
+        ``scheduler`` is not an address, or the cluster cannot be reached or is lost.
+    DiskFullError, OutputNotWritableError, WriteError
+        A write failed (what was kept is in the error's ``kept``).
+    RunInterrupted
+        SIGINT or SIGTERM (a ``KeyboardInterrupt``), with what was kept.
     ImportError
         ``workers`` or ``scheduler`` given and dask.distributed not installed.
     """
@@ -521,68 +317,116 @@ def run_study_chunked(
         raise ValueError("give workers (a local dask cluster) or scheduler (an existing one), not both")
     if workers is not None and int(workers) < 1:
         raise ValueError(f"workers must be at least 1, got {workers}")
+    if chunk_cases is not None and int(chunk_cases) < 1:
+        raise ValueError(f"chunk_cases must be at least 1, got {chunk_cases}")
+    if scheduler is not None:
+        scheduler = scheduler_address(scheduler)
     if workers is not None or scheduler is not None:
-        _distributed()
+        distributed_module()
     output = FilePath(output)
+    output.parent.mkdir(parents=True, exist_ok=True)
+    with claim_output(output, resume=resume, overwrite=overwrite, notify=notify):
+        directory = parts_directory(output)
+        if resume and not directory.exists() and output.exists():
+            try:
+                if open_study(output).attrs.get("study") == study.text:
+                    return output  # already complete
+            except ArchiveError:
+                pass  # a damaged archive: computed again
+        stored = resumed_chunk_size(directory, study, chunk_cases) if resume else None
+        if stored is None:
+            chunk_cases = default_chunk_cases(study, workers) if chunk_cases is None else int(chunk_cases)
+        else:
+            chunk_cases = stored
+        chunks = plan_chunks(study, chunk_cases)
+        try:
+            _run_chunks(study, output, chunks, chunk_cases, stored is not None, workers, scheduler,
+                        scheduler_timeout, progress, notify)
+        except RunError as error:
+            error.kept = error.kept or _kept(output, chunks)
+            raise
+        except RunInterrupted as interrupt:
+            interrupt.kept = interrupt.kept or _kept(output, chunks)
+            raise
+        except KeyboardInterrupt:
+            raise RunInterrupted("SIGINT", _kept(output, chunks)) from None
+    return output
+
+
+def _run_chunks(
+    study: Study, output: FilePath, chunks: list[Chunk], chunk_cases: int, resuming: bool, workers: int | None,
+    scheduler: str | None, scheduler_timeout: float, progress: bool, notify: Callable[[str], None] | None,
+) -> None:
+    """The body of :func:`run_study_chunked`, once the output is claimed and the chunks planned."""
     directory = parts_directory(output)
     digest = study_digest(study)
-    if resume and not directory.exists() and output.exists():
-        finished = open_study(output)
-        if finished.attrs.get("study") == study.text:
-            return output
-    output.parent.mkdir(parents=True, exist_ok=True)
-    if chunk_cases is None and not (resume and (directory / MANIFEST).exists()):
-        chunk_cases = default_chunk_cases(study, workers)
-    chunk_cases = _prepare_parts(directory, study, chunk_cases, resume)
-    chunks = plan_chunks(study, chunk_cases)
     layout = archive_layout(study, chunk_cases)
-    kept = [chunk for chunk in chunks if (directory / chunk.file_name).exists()]
-    missing = [chunk for chunk in chunks if not (directory / chunk.file_name).exists()]
-    bar = None
-    if progress:
-        from tqdm.auto import tqdm
+    kept = [chunk for chunk in chunks if resuming and (directory / chunk.file_name).exists()]
+    missing = [chunk for chunk in chunks if chunk not in kept]
+    wanted = workers is not None or scheduler is not None  # a cluster, when some chunk is missing
+    with contextlib.ExitStack() as stack:
+        # The cluster first: if it cannot be reached, nothing is written.
+        client = (
+            stack.enter_context(cluster_client(workers, scheduler, scheduler_timeout)) if missing and wanted else None
+        )
+        if not resuming:
+            with writing(directory):
+                create_parts(directory, study, chunk_cases)
+        bar = None
+        if progress:
+            from tqdm.auto import tqdm
 
-        bar = tqdm(total=sum(c.size for c in chunks), unit="case", desc="ncstab", leave=False)
-    grid = ParameterGrid.from_mapping(study.parameters)
-    archive = ArchiveStream(directory / ARCHIVE_IN_PROGRESS, tuple(study.laws), grid, layout)
+            bar = stack.enter_context(tqdm(total=sum(c.size for c in chunks), unit="case", desc="ncstab", leave=False))
+        grid = ParameterGrid.from_mapping(study.parameters)
+        archive = ArchiveStream(directory / ARCHIVE_IN_PROGRESS, tuple(study.laws), grid, layout)
 
-    def append(chunk: Chunk, encoded: EncodedChunk) -> None:
-        archive.append(encoded)
-        # The chunk's objects include reference cycles (engine state, xarray
-        # internals): free them now, not at the collector's next whim, so that
-        # one chunk at a time is held.
-        gc.collect()
-        if bar is not None:
-            bar.update(chunk.size)
+        def append(chunk: Chunk, encoded: EncodedChunk) -> None:
+            with writing(directory / ARCHIVE_IN_PROGRESS):
+                archive.append(encoded)
+            # The chunk's objects include reference cycles (engine state, xarray
+            # internals): free them now, not at the collector's next whim, so that
+            # one chunk at a time is held.
+            gc.collect()
+            if bar is not None:
+                bar.update(chunk.size)
 
-    try:
-        for chunk in kept:
-            append(chunk, _read_part(directory, chunk, digest))  # (not held after the call)
-        if workers is None and scheduler is None:
-            for chunk in missing:
-                encoded = encode_study_chunk(study, chunk, layout, run_chunk(study, chunk.law, chunk.start, chunk.stop))
-                _write_part(directory, chunk, digest, encoded)
-                append(chunk, encoded)
-                del encoded  # one chunk held at a time: not this one while the next is computed
-        elif missing:
-            with _cluster_client(workers, scheduler) as client:
+        def keep(chunk: Chunk, encoded: EncodedChunk) -> None:
+            with writing(directory / chunk.file_name):
+                write_part(directory, chunk, digest, encoded)
+
+        try:
+            damaged = []
+            for chunk in kept:
+                try:
+                    append(chunk, read_kept_part(directory, chunk, digest))  # (not held after the call)
+                except DamagedPart as error:
+                    (directory / chunk.file_name).unlink(missing_ok=True)
+                    damaged.append(str(error).split(":")[0])
+                    missing.append(chunk)
+            if damaged and notify is not None:
+                notify(f"{len(damaged)} kept chunk(s) could not be read back ({damaged[0]}...): computing them again")
+            if client is None:
+                for chunk in missing:
+                    encoded = encode_study_chunk(study, chunk, layout, run_chunk(study, chunk.law, chunk.start, chunk.stop))
+                    keep(chunk, encoded)
+                    append(chunk, encoded)
+                    del encoded  # one chunk held at a time: not this one while the next is computed
+            else:
                 shared = scheduler is None  # a local cluster sees the parts directory
-                for chunk, encoded in _on_cluster(client, study, missing, layout, directory, digest, shared):
+                for chunk, encoded in on_cluster(client, compute_part, study, missing, layout, directory, digest, shared):
                     if encoded is None:
-                        encoded = _read_part(directory, chunk, digest)
+                        encoded = read_part(directory, chunk, digest)
                     else:
-                        _write_part(directory, chunk, digest, encoded)
+                        keep(chunk, encoded)
                     append(chunk, encoded)
                     del encoded
-        archive.close()
-    except BaseException:
-        archive.abort()
-        (directory / ARCHIVE_IN_PROGRESS).unlink(missing_ok=True)
-        raise
-    finally:
-        if bar is not None:
-            bar.close()
-    with atomic_destination(output, ".nc.tmp") as temporary:
-        os.replace(directory / ARCHIVE_IN_PROGRESS, temporary)
+            with writing(directory / ARCHIVE_IN_PROGRESS):
+                archive.close()
+        except BaseException:
+            archive.abort()
+            (directory / ARCHIVE_IN_PROGRESS).unlink(missing_ok=True)
+            raise
+    with writing(output):
+        with atomic_destination(output, ".tmp") as temporary:
+            os.replace(directory / ARCHIVE_IN_PROGRESS, temporary)
     shutil.rmtree(directory)
-    return output

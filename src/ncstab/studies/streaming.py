@@ -5,11 +5,14 @@ The archive's HDF5 chunks are laid out so that every chunk of the archive
 belongs to exactly one chunk of cases (:class:`BlockLayout`): its cases form a
 *block*, a run of the flat cases that is also a box of the swept dimensions.
 Whoever computes a chunk of cases (the process itself or a dask worker)
-therefore also compresses its part of the archive, byte-shuffle then deflate
-as the HDF5 filters would (:func:`encode_chunk`), and the process that owns
-the archive only copies the compressed bytes in
-(:meth:`ArchiveStream.append`, HDF5's direct chunk write through h5py).
-Compression, the dearest part of writing, is spread over the workers.
+therefore also compresses its part of the archive, Fletcher-32 checksum,
+byte-shuffle then deflate as the HDF5 filters would (:func:`encode_chunk`,
+:func:`~ncstab.studies.checksums.hdf5_chunk`), and the process that owns the
+archive only copies the compressed bytes in (:meth:`ArchiveStream.append`,
+HDF5's direct chunk write through h5py).  Compression, the dearest part of
+writing, is spread over the workers.  The variables HDF5 does not checksum
+(strings, small coordinates) get their digest when the archive is closed, as
+in an archive written at once.
 
 The ``step`` dimension is a NetCDF *unlimited* dimension: the longest path is
 known only once every chunk is in.  Floating-point variables read NaN past
@@ -27,7 +30,6 @@ import datetime as _dt
 import itertools
 import math
 import os
-import zlib
 from dataclasses import dataclass, field
 from pathlib import Path as FilePath
 from typing import TYPE_CHECKING, Any
@@ -36,7 +38,8 @@ import numpy as np
 
 from ncstab.paths.dataset import parameter_attributes
 from ncstab.paths.variables import CASE_DIMENSION
-from ncstab.studies.archive import COMPRESSION, MIN_COMPRESSED_SIZE
+from ncstab.studies.archive import COMPRESSION, ENGINE, MIN_COMPRESSED_SIZE
+from ncstab.studies.checksums import DIGEST_ATTRIBUTE, format_digests, hdf5_chunk, variable_digest
 
 if TYPE_CHECKING:  # pragma: no cover
     import xarray as xr
@@ -44,6 +47,10 @@ if TYPE_CHECKING:  # pragma: no cover
     from ncstab.paths.api import ParameterGrid
 
 __all__ = ["ArchiveStream", "BlockLayout", "EncodedChunk", "encode_chunk"]
+
+#: HDF5 filter identifiers, in the pipeline order the encoder follows
+#: (:func:`~ncstab.studies.checksums.hdf5_chunk`): Fletcher-32, shuffle, deflate.
+FILTER_PIPELINE = (3, 2, 1)
 
 #: States per HDF5 chunk along the (unlimited) ``step`` dimension, at most.
 STEP_CHUNK = 64
@@ -184,15 +191,14 @@ def variable_chunk(dims: tuple[str, ...], sizes: dict[str, int], layout: BlockLa
 
 
 def deflate_shuffled(values: np.ndarray) -> bytes:
-    """One HDF5 chunk as the archive's filters store it: byte shuffle, then deflate.
+    """One HDF5 chunk as the archive's filters store it: Fletcher-32, byte shuffle, deflate.
 
     The same bytes HDF5 writes for a variable encoded with
-    :data:`~ncstab.studies.archive.COMPRESSION` (``shuffle`` then ``zlib`` at
-    ``complevel``); the reader's filters undo them.
+    :data:`~ncstab.studies.archive.COMPRESSION` (``fletcher32``, ``shuffle``
+    then ``zlib`` at ``complevel``, :data:`FILTER_PIPELINE`); the reader's
+    filters check and undo them.
     """
-    values = np.ascontiguousarray(values)
-    shuffled = values.view(np.uint8).reshape(-1, values.itemsize).T.tobytes()
-    return zlib.compress(shuffled, COMPRESSION["complevel"])
+    return hdf5_chunk(values, COMPRESSION["complevel"])
 
 
 def _fill(dtype: np.dtype) -> Any:
@@ -316,7 +322,8 @@ class ArchiveStream:
     template gives the variables, their attributes and the dimensions other
     than ``law``, the swept parameters and ``step``), then filled with h5py,
     whose direct chunk writes copy the encoded chunks in as they are; the law
-    classes are written with netCDF4 again at :meth:`close`.
+    classes and the digests of the variables HDF5 does not checksum are
+    written with netCDF4 again at :meth:`close`.
     """
 
     def __init__(
@@ -333,6 +340,7 @@ class ArchiveStream:
         self._step_variables: dict[str, int] = {}  # name: axis of step
         self._step_integers: dict[str, tuple[int, ...]] = {}  # name: chunk shape
         self._classes: dict[str, str] = {}
+        self._direct: list[str] = []  # variables filled by direct chunk writes
         self._length = 0
 
     @property
@@ -350,6 +358,21 @@ class ArchiveStream:
         finally:
             handle.close()
         self._file = h5py.File(self.path, "r+")
+        self._check_pipelines()
+
+    def _check_pipelines(self) -> None:
+        """The encoder writes chunks for :data:`FILTER_PIPELINE`: refuse a netCDF library that set others."""
+        for name in self._direct:
+            plist = self._file[name].id.get_create_plist()
+            filters = tuple(plist.get_filter(i)[0] for i in range(plist.get_nfilters()))
+            if filters != FILTER_PIPELINE:
+                import netCDF4
+
+                raise RuntimeError(
+                    f"{self.path}: netCDF-C {netCDF4.__netcdf4libversion__} gave variable {name!r} the HDF5 "
+                    f"filters {filters}, not {FILTER_PIPELINE} (Fletcher-32, shuffle, deflate) that chunked "
+                    "runs write; run without chunks or with another netCDF4 version"
+                )
 
     def _define_all(self, handle: Any, template: "xr.Dataset") -> None:
         sizes = {"law": len(self.laws), **{name: values.size for name, values in self.grid.sweep.items()}}
@@ -379,6 +402,8 @@ class ArchiveStream:
                 if coordinates:
                     attrs["coordinates"] = " ".join(coordinates)
             chunk = variable_chunk(dims, sizes, self.layout, self.sweep) if _is_encoded(variable) else None
+            if chunk is not None:
+                self._direct.append(str(name))
             self._define(handle, str(name), variable.dtype, dims, attrs, name in index_names, sizes, chunk)
             if "step" in dims:
                 self._step_variables[str(name)] = dims.index("step")
@@ -455,7 +480,8 @@ class ArchiveStream:
                         dataset.id.write_direct_chunk((k, *block.origin, *position), padding)
 
     def close(self) -> None:
-        """Write the ``step`` coordinate, pad integer step variables with -1, close the file."""
+        """Write the ``step`` coordinate, pad integer step variables with -1, write the
+        law classes and the digests, close the file."""
         if self._file is None:
             raise ValueError(f"{self.path}: no chunk was appended; an archive needs at least one")
         missing = [law for law in self.laws if law not in self._classes]
@@ -472,6 +498,20 @@ class ArchiveStream:
             # As in a whole run's Dataset (ncstab.paths.PathResult.to_dataset): every law's class.
             handle.variables["law_class"][:] = np.array([self._classes[law] for law in self.laws], dtype=object)
             handle.setncattr("law_class", "; ".join(f"{law}: {self._classes[law]}" for law in self.laws))
+        digests = self._digests()
+        with netCDF4.Dataset(self.path, "a") as handle:
+            handle.setncattr(DIGEST_ATTRIBUTE, format_digests(digests))
+
+    def _digests(self) -> dict[str, str]:
+        """SHA-256 of each variable without HDF5's checksum filter, as the archive's reader sees it."""
+        import xarray as xr
+
+        from ncstab.studies.archive import normalise_dataset
+
+        with xr.open_dataset(self.path, engine=ENGINE) as dataset:
+            names = [name for name, variable in dataset.variables.items() if not variable.encoding.get("fletcher32")]
+            on_disk = normalise_dataset(dataset[names] if names else dataset)
+            return {str(name): variable_digest(on_disk.variables[name].values) for name in names}
 
     def abort(self) -> None:
         """Close the file without completing it (the caller removes it)."""

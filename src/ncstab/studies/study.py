@@ -29,16 +29,19 @@ from ncstab.paths.options import NORMAL_MODES, SECONDARY_CONTACT_MODES, PathOpti
 from ncstab.paths.programme import (
     CURRENT,
     EVENTS,
+    CycleStage,
     LoadingProgramme,
     ProgrammeError,
     parse_programme,
 )
 from ncstab.studies.expressions import ExpressionError, evaluate_expression, is_expression
+from ncstab.studies.figure_fit import FigureFit, figure_fit, figure_misfit
 from ncstab.studies.user_laws import user_laws_from_tables
 from ncstab.systems import SYSTEMS, SystemDefinition, SystemKind
 
 __all__ = [
     "DEFAULT_FIGURES",
+    "DEFAULT_MAX_CASES",
     "FIGURE_KINDS",
     "SECTIONS",
     "Study",
@@ -69,6 +72,8 @@ FIGURE_KINDS = (
 )
 #: Figures drawn when ``[output] figures`` is not given.
 DEFAULT_FIGURES = ("load_displacement", "load_rotation")
+#: Most cases a study may have unless ``[options] max_cases`` (or ``--max-cases``) allows more.
+DEFAULT_MAX_CASES = 1_000_000
 
 _NAME = re.compile(r"[A-Za-z0-9_-]+")
 _SYSTEM_SETTINGS = ("name", "secondary_contacts", "normal")
@@ -165,6 +170,10 @@ class Study:
     user_laws
         The laws of the ``[laws.<name>]`` tables (:func:`ncstab.laws.user_law`),
         without modifiers; :meth:`law_definition` resolves any of :attr:`laws`.
+        ``[map]``: second-order work maps to add, or ``None``.
+    max_cases
+        ``[options] max_cases``: the most cases ``ncstab run`` runs
+        (:data:`DEFAULT_MAX_CASES` unless given).
     """
 
     name: str
@@ -190,6 +199,7 @@ class Study:
     def law_definitions(self) -> tuple[LawDefinition, ...]:
         """The definitions of :attr:`laws`, in order: what every run mode follows."""
         return tuple(self.law_definition(name) for name in self.laws)
+    max_cases: int = DEFAULT_MAX_CASES
 
     @property
     def sweep(self) -> dict[str, list[float]]:
@@ -830,9 +840,17 @@ _OPTION_FIELDS = {f.name: f for f in dataclasses.fields(PathOptions)}
 _OPTION_NAME = re.compile(r"PathOptions\.(\w+)")
 
 
-def _options_section(data: Mapping[str, Any], errors: _Errors) -> PathOptions:
+def _options_section(data: Mapping[str, Any], errors: _Errors) -> tuple[PathOptions, int]:
+    """Engine options (:class:`PathOptions`) and the study's ``max_cases``."""
     table = _table(data, "options", errors) or {}
-    _check_keys(table, list(_OPTION_FIELDS), "options", errors, "[options]")
+    _check_keys(table, [*_OPTION_FIELDS, "max_cases"], "options", errors, "[options]")
+    max_cases = DEFAULT_MAX_CASES
+    if "max_cases" in table:
+        raw = table["max_cases"]
+        if isinstance(raw, bool) or not isinstance(raw, int) or raw < 1:
+            errors.add("options.max_cases", f"expected a whole number >= 1 (the most cases to run), got {raw!r}")
+        else:
+            max_cases = raw
     values: dict[str, Any] = {}
     for name, raw in table.items():
         if name not in _OPTION_FIELDS:
@@ -862,11 +880,11 @@ def _options_section(data: Mapping[str, Any], errors: _Errors) -> PathOptions:
                 continue
         values[name] = value
     try:
-        return PathOptions(**values)
+        return PathOptions(**values), max_cases
     except ValueError as error:
         match = _OPTION_NAME.search(str(error))
         errors.add(f"options.{match.group(1)}" if match else "options", str(error))
-        return PathOptions()
+        return PathOptions(), max_cases
 
 
 @dataclass(frozen=True)
@@ -932,7 +950,10 @@ def _map_section(data: Mapping[str, Any], errors: _Errors) -> StudyMap | None:
     return StudyMap(directions, grid)
 
 
-def _output_section(data: Mapping[str, Any], errors: _Errors) -> tuple[tuple[str, ...], str | None]:
+def _output_section(
+    data: Mapping[str, Any], errors: _Errors, fit: FigureFit | None = None
+) -> tuple[tuple[str, ...], str | None]:
+    """Figure kinds and archive file; a kind the study cannot draw (``fit``) is an error."""
     table = _table(data, "output", errors) or {}
     _check_keys(table, _OUTPUT_KEYS, "output", errors, "[output]")
     figures: tuple[str, ...] = DEFAULT_FIGURES
@@ -952,6 +973,8 @@ def _output_section(data: Mapping[str, Any], errors: _Errors) -> tuple[tuple[str
                     )
                 elif kind in kinds:
                     errors.add("output.figures", f"figure kind {kind!r} is listed twice")
+                elif fit is not None and figure_misfit(kind, fit) is not None:
+                    errors.add("output.figures", str(figure_misfit(kind, fit)))
                 else:
                     kinds.append(kind)
             figures = tuple(kinds)
@@ -1121,11 +1144,87 @@ def _check_fixed_parameters(data: Mapping[str, Any], errors: _Errors, kind: Syst
         )
 
 
+def _check_law_spellings(names: Sequence[str], definitions: Sequence[LawDefinition], errors: _Errors) -> None:
+    """Two names of ``[laws] names`` that spell the same law (``turco+no_tension``, ``turco + no_tension``)."""
+    seen: dict[str, str] = {}
+    for name, definition in zip(names, definitions):
+        if definition.name in seen:
+            errors.add(
+                "laws.names",
+                f"{seen[definition.name]!r} and {name!r} are the same law ({definition.name}); list it once",
+            )
+        else:
+            seen[definition.name] = name
+
+
+def _check_stages_do_something(
+    programme: LoadingProgramme, parameters: Mapping[str, Any], errors: _Errors
+) -> None:
+    """A study known, from the file alone, to compute nothing or to fail every case is an error.
+
+    Known from the file (:func:`~ncstab.studies.stage_extent.stage_extents`):
+    from rest every displacement and force is 0, and a stage that ends leaves
+    its driven quantity at its target and its held ones at their values.
+    Refused: a programme whose every linear stage drives its quantity to the
+    value it already has, in every case (the study would store no state and
+    "finish"), and a cycle whose centre is the point it starts from (radius 0:
+    the path engine fails every case there).  A stage that moves nothing
+    among stages that do (a preload of 0) is accepted: it is skipped.
+    """
+    from ncstab.studies.stage_extent import stage_extents
+
+    extents = stage_extents(programme.stages, parameters)
+    linear = []
+    for number, (stage, extent) in enumerate(zip(programme.stages, extents), 1):
+        where = "at rest" if number == 1 else f"where stage {number - 1} leaves it"
+        if not isinstance(stage, CycleStage):
+            linear.append((number, extent, where))
+        elif extent.does_nothing:
+            start = ", ".join(f"{extent.start[d]:g}" for d in extent.driven.split(","))
+            errors.add(
+                f"loading[{number}].cycle.center",
+                f"the centre is the point the cycle starts from ([{start}], {where}): a circle of radius 0; "
+                "give a centre away from it",
+            )
+    if linear and len(linear) == len(extents) and all(extent.does_nothing for _, extent, _ in linear):
+        number, extent, where = linear[0]
+        name = extent.driven
+        others = " and so does every later stage" if len(linear) > 1 else ""
+        errors.add(
+            f"loading[{number}].drive.{name}",
+            f"drives {name} to {extent.start[name]:g}, the value it already has ({where}){others}: the study "
+            "would compute nothing; give another target",
+        )
+
+
 def _error_order(error: tuple[str, str]) -> tuple[int, int]:
     """Sort key: the section's place in :data:`SECTIONS` (unknown ones last), then the stage."""
     head = re.split(r"[.\[]", error[0], maxsplit=1)[0]
     stage = re.match(r"loading\[(\d+)\]", error[0])
     return (SECTIONS.index(head) if head in SECTIONS else len(SECTIONS), int(stage.group(1)) if stage else 0)
+
+
+def _decode_toml(text: str, source: str) -> dict[str, Any]:
+    """The TOML text as a table; any text that is not valid TOML is one :class:`StudyFileError`.
+
+    Besides syntax errors: an integer of more digits than Python converts
+    (``sys.get_int_max_str_digits()``, 4300), and nesting deeper than the
+    parser's recursion allows (``[[[[...`` 100,000 deep).
+    """
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as error:
+        message = str(error)
+        if message.endswith("(at end of document)"):
+            message = message[: -1] + f", line {text.count(chr(10)) + 1})"
+        raise StudyFileError(source, [("toml", f"invalid TOML: {message}")]) from None
+    except RecursionError:
+        raise StudyFileError(
+            source, [("toml", "invalid TOML: arrays or tables nested too deeply for a study file")]
+        ) from None
+    except ValueError as error:  # an integer too long to convert ("Exceeds the limit (4300 digits)...")
+        first = str(error).split(";")[0]
+        raise StudyFileError(source, [("toml", f"invalid TOML: a number too long to read ({first})")]) from None
 
 
 def parse_study(text: str, path: str | None = None) -> Study:
@@ -1145,19 +1244,14 @@ def parse_study(text: str, path: str | None = None) -> Study:
         syntax error, only that one: nothing else can be read).
     """
     source = str(path) if path is not None else "<string>"
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as error:
-        message = str(error)
-        if message.endswith("(at end of document)"):
-            message = message[: -1] + f", line {text.count(chr(10)) + 1})"
-        raise StudyFileError(source, [("toml", f"invalid TOML: {message}")]) from None
+    data = _decode_toml(text, source)
     errors = _Errors()
     _unknown_sections(data, errors)
     name, description = _study_section(data, errors)
     named = (data.get("system") or {}).get("name", "diamond") if isinstance(data.get("system"), dict) else "diamond"
     own_laws = isinstance(named, str) and named in SYSTEMS and SYSTEMS[named].own_laws
     laws, definitions, all_laws_valid, user_laws = _laws_section(data, errors, optional=own_laws)
+    _check_law_spellings(laws, definitions, errors)
     law_only = {p.name for d in (definitions if all_laws_valid else LAWS.values()) for p in d.parameters}
     law_only -= set(_system_parameter_names(None))
     system, kind, system_raw = _system_section(data, errors, law_only)
@@ -1170,10 +1264,13 @@ def parse_study(text: str, path: str | None = None) -> Study:
     programme, references = _loading_section(data, errors, kind, system)
     known = [k for k in specs if not (system.normal == "rigid" and k in RIGID_MEANINGLESS)]
     _check_references(errors, references, fields, free, known)
-    options = _options_section(data, errors)
+    options, max_cases = _options_section(data, errors)
     study_map = _map_section(data, errors)
-    figures, output = _output_section(data, errors)
+    fit = None if errors.items else figure_fit(programme, parameters, study_map, definitions, system)
+    figures, output = _output_section(data, errors, fit)
     spectrum = _spectrum_option(data, errors, figures, system)
+    if not errors.items and programme is not None:
+        _check_stages_do_something(programme, parameters, errors)
 
     if programme is not None and programme.follows_branches:
         from ncstab.paths.api import with_branches
@@ -1198,6 +1295,7 @@ def parse_study(text: str, path: str | None = None) -> Study:
         output=output,
         map=study_map,
         user_laws=tuple(user_laws.values()),
+        max_cases=max_cases,
     )
 
 

@@ -1,0 +1,170 @@
+"""Is a file a readable ncstab archive?  Opening, digests and invariants.
+
+:func:`~ncstab.studies.open_study` and
+:func:`~ncstab.studies.open_study_lazily` open a file with :func:`opened`,
+check the digest attributes with :func:`verified` and the invariants of an
+archive with :func:`check_archive`; each raises
+:class:`~ncstab.studies.errors.ArchiveError` saying what is wrong, which
+``ncstab info`` and ``ncstab plot`` turn into one line and exit code 2.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+from collections.abc import Iterator
+from pathlib import Path as FilePath
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ncstab.studies.checksums import DIGEST_ATTRIBUTE, parse_digests, variable_digest
+from ncstab.studies.errors import ArchiveError
+
+if TYPE_CHECKING:  # pragma: no cover
+    import xarray as xr
+
+__all__ = ["REQUIRED_VARIABLES", "check_archive", "known_status", "opened", "verified"]
+
+#: Variables every archive has (with the coordinate ``law``).
+REQUIRED_VARIABLES = ("status", "message", "n_steps")
+#: A failure reason or an event name: lower-case words joined by '_'.
+_WORD = re.compile(r"[a-z][a-z0-9_]*")
+
+
+@contextlib.contextmanager
+def opened(path: str | os.PathLike[str]) -> Iterator["xr.Dataset"]:
+    """The file open as a (lazy) Dataset, closed on exit.
+
+    Raises
+    ------
+    ArchiveError
+        No such file, a directory, or a file netCDF cannot open (empty,
+        truncated, not NetCDF/HDF5).
+    """
+    import xarray as xr
+
+    from ncstab.studies.archive import ENGINE
+
+    path = FilePath(path)
+    if not path.exists():
+        raise ArchiveError(path, "no such file")
+    if path.is_dir():
+        raise ArchiveError(path, "it is a directory")
+    if path.stat().st_size == 0:
+        raise ArchiveError(path, "the file is empty")
+    try:
+        dataset = xr.open_dataset(path, engine=ENGINE)
+    except Exception as error:  # netCDF's errors are OSError, RuntimeError, ValueError...
+        raise ArchiveError(path, f"netCDF cannot open it ({error})") from None
+    with dataset:
+        yield dataset
+
+
+def verified(dataset: "xr.Dataset", path: str | os.PathLike[str]) -> "xr.Dataset":
+    """``dataset`` with the digests of its attribute checked, the attribute removed.
+
+    The variables named in :data:`~ncstab.studies.checksums.DIGEST_ATTRIBUTE`
+    are read and their SHA-256 compared; the others are checked by HDF5
+    (Fletcher-32).  An archive written before checksums has no such
+    attribute and is accepted as it is.
+
+    Raises
+    ------
+    ArchiveError
+        A digest differs or a named variable is missing (names it), the
+        attribute cannot be read, or a variable cannot be read.
+    """
+    text = dataset.attrs.get(DIGEST_ATTRIBUTE)
+    if text is None:
+        return dataset
+    try:
+        digests = parse_digests(text)
+    except ValueError as error:
+        raise ArchiveError(path, f"attribute {DIGEST_ATTRIBUTE!r} is damaged: {error}") from None
+    for name, expected in digests.items():
+        if name not in dataset.variables:
+            raise ArchiveError(path, f"variable {name!r}, listed in {DIGEST_ATTRIBUTE!r}, is missing")
+        try:
+            found = variable_digest(dataset.variables[name].values)
+        except Exception as error:
+            raise ArchiveError(path, f"variable {name!r} cannot be read (damaged data?): {error}") from None
+        if found != expected:
+            raise ArchiveError(path, f"variable {name!r} does not match its checksum: the file is damaged")
+    dataset = dataset.copy(deep=False)
+    dataset.attrs = {k: v for k, v in dataset.attrs.items() if k != DIGEST_ATTRIBUTE}
+    return dataset
+
+
+def known_status(status: str) -> bool:
+    """Whether a case status is one of ``finished``, ``stopped:<event>``, ``failed:<reason>``."""
+    from ncstab.paths.programme import EVENTS
+
+    if status == "finished":
+        return True
+    kind, _, detail = status.partition(":")
+    if kind == "stopped":
+        return detail in EVENTS
+    return kind == "failed" and bool(_WORD.fullmatch(detail))
+
+
+def check_archive(dataset: "xr.Dataset", path: str | os.PathLike[str]) -> None:
+    """Check the invariants of an ncstab archive.
+
+    * the variables ``status``, ``message``, ``n_steps`` and the coordinate
+      ``law``, ``status`` and ``n_steps`` over the same dimensions, ``law`` first;
+    * the attribute ``study`` is a valid study file (it parses), or empty (a
+      Dataset of :func:`ncstab.follow`, written from Python);
+    * 0 <= ``n_steps`` <= the length of ``step`` (0 without ``step``);
+    * every status is ``finished``, ``stopped:<event>`` or ``failed:<reason>``;
+    * the ``figures`` attribute, if any, names figure kinds ncstab draws.
+
+    Raises
+    ------
+    ArchiveError
+        Naming the first invariant that does not hold.
+    """
+    from ncstab.studies.study import FIGURE_KINDS, StudyFileError, parse_study
+
+    missing = [name for name in REQUIRED_VARIABLES if name not in dataset.variables]
+    if missing or "law" not in dataset.coords:
+        what = ", ".join(repr(name) for name in missing + ([] if "law" in dataset.coords else ["law"]))
+        raise ArchiveError(path, f"no {what} variable: not an archive written by ncstab")
+    dims = dataset["status"].dims
+    if dataset["n_steps"].dims != dims or not dims or dims[0] != "law":
+        raise ArchiveError(
+            path, f"'status' {dims} and 'n_steps' {dataset['n_steps'].dims} should have the same "
+            "dimensions, 'law' first"
+        )
+    study = dataset.attrs.get("study")
+    if not isinstance(study, str):
+        raise ArchiveError(path, "no 'study' attribute (the study file it was run from)")
+    try:
+        if study:  # "": a path followed from Python (ncstab.follow), without a study file
+            parse_study(study, "<archive>")
+    except StudyFileError as error:
+        field, message = error.errors[0]
+        raise ArchiveError(path, f"its 'study' attribute is not a valid study file ({field}: {message})") from None
+    n_steps = np.asarray(dataset["n_steps"].values)
+    steps = int(dataset.sizes.get("step", 0))
+    if n_steps.dtype.kind not in "iu":
+        raise ArchiveError(path, f"variable 'n_steps' holds {n_steps.dtype} values, not whole numbers")
+    outside = (n_steps < 0) | (n_steps > steps)
+    if outside.any():
+        raise ArchiveError(
+            path, f"variable 'n_steps' has {int(n_steps[outside].ravel()[0])} stored states where the "
+            f"'step' dimension has {steps}"
+        )
+    statuses = np.unique(np.asarray(dataset["status"].values).astype(str))
+    unknown = [status for status in statuses.tolist() if not known_status(status)]
+    if unknown:
+        raise ArchiveError(
+            path, f"variable 'status' holds {unknown[0]!r}, not finished, stopped:<event> or failed:<reason>"
+        )
+    figures = dataset.attrs.get("figures")
+    if figures is not None:
+        kinds = [k.strip() for k in str(figures).split(",") if k.strip()] if isinstance(figures, str) else None
+        bad = [k for k in kinds if k not in FIGURE_KINDS] if kinds is not None else [repr(figures)]
+        if bad:
+            raise ArchiveError(path, f"attribute 'figures' names {bad[0]!r}, not a figure kind ncstab draws")
