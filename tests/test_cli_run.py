@@ -20,8 +20,10 @@ SEED_STUDIES = sorted((ROOT / "studies" / "seed").glob("*.toml"))
 # stability_diagram.toml (16,384 cases, about a minute) runs on a reduced grid in test_stability_diagram.py.
 ALL_STUDIES = SEED_STUDIES + sorted(p for p in (ROOT / "studies").glob("*.toml") if p.stem != "stability_diagram")
 BAD_STUDIES = sorted((ROOT / "tests" / "data" / "bad_studies").glob("*.toml"))
-CONTRACT = ["u", "F", "alpha", "l", "N", "T", "s", "stage", "K", "K_sym", "K_skew", "det_K",
+CONTRACT = ["u", "F", "s", "stage", "K", "K_sym", "K_skew", "det_K",
             "hill", "d2W", "flutter", "status", "n_steps"]
+#: The interaction variables of a granular system, of a system of springs.
+GRANULAR, SPRINGS = ["alpha", "l", "N", "T"], ["theta", "moment"]
 
 TINY_STUDY = """
 [study]
@@ -61,12 +63,14 @@ def test_every_shipped_study_runs_and_draws(study_path, tmp_path, capsys):
     printed = capsys.readouterr().out
     assert f"wrote {output}" in printed and "FAILED" not in printed
     ds = open_study(output)
-    for name in CONTRACT:
+    interactions = SPRINGS if "theta" in ds else GRANULAR
+    for name in CONTRACT + interactions + (["load"] if "load_parameter" in ds.attrs else []):
         assert name in ds, name
         if name not in ("status",):
             assert {"long_name", "description"} <= set(ds[name].attrs), name
     for event in EVENTS:
-        assert f"{event}_u" in ds and f"{event}_F" in ds and f"{event}_alpha" in ds
+        assert f"{event}_u" in ds and f"{event}_F" in ds and f"{event}_{interactions[0]}" in ds
+        assert (f"{event}_load" in ds) == ("load_parameter" in ds.attrs)
     assert ds.attrs["study"] == study_path.read_text()
     assert ds.attrs["law_class"] and ds.attrs["ncstab_version"]
     assert (ds["status"].astype(str) == "finished").all()

@@ -52,7 +52,8 @@ def _documented_changes(golden: xr.Dataset, computed: xr.Dataset) -> xr.Dataset:
       ``F2``) along ``dof``;
     * the ``law`` coordinate is an "interaction law" (springs have laws too);
     * the attribute ``system_settings`` states the system's structural
-      settings (``reduction=symmetric``).
+      settings (``reduction=symmetric``), and ``stage_drives`` what each
+      loading stage drives (the figures' axes).
 
     and, in the variables (issue 16, dynamic stability):
 
@@ -75,6 +76,7 @@ def _documented_changes(golden: xr.Dataset, computed: xr.Dataset) -> xr.Dataset:
     )
     changed["law"].attrs = dict(computed["law"].attrs)
     changed.attrs["system_settings"] = computed.attrs["system_settings"]
+    changed.attrs["stage_drives"] = computed.attrs["stage_drives"]
     for name in computed.data_vars:
         if name.startswith(("bifurcation_", "divergence_")) or name == "flutter_onset_frequency":
             found = computed[name]

@@ -9,6 +9,7 @@ in the test and differentiated with sympy, or finite differences.
 from __future__ import annotations
 
 import pickle
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -426,3 +427,42 @@ max_step = 0.05
         dataset.attrs.pop("created")
     assert a.attrs["system"] == "my_ring"
     xr.testing.assert_identical(a, b)
+
+
+def _docs_table_row(law: str, gamma: str, F2: str) -> list[str]:
+    text = (Path(__file__).parent.parent / "docs" / "models.md").read_text(encoding="utf-8")
+    for line in text.splitlines():
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        if cells[:3] == [law, gamma, F2]:
+            return cells[3:]
+    raise AssertionError(f"docs/models.md has no row for {law}, {gamma}, {F2}")
+
+
+@pytest.mark.parametrize("law, gamma, F2", [("cundall_strack", 0.5, 0.75)])
+def test_the_antisymmetric_modes_table_of_the_docs_is_what_the_script_computes(law, gamma, F2):
+    """docs/models.md's finding, recomputed for two of its rows by the script that made it."""
+    import importlib.util
+
+    script = Path(__file__).parent.parent / "docs" / "scripts" / "antisymmetric_modes.py"
+    spec = importlib.util.spec_from_file_location("antisymmetric_modes", script)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    losses = module.block_losses(law, gamma, F2)
+    columns = ["symmetric Hill", "symmetric det", "antisymmetric Hill", "antisymmetric det"]
+    computed = ["—" if np.isnan(losses[c]) else f"{losses[c]:.3f}" for c in columns]
+    assert computed == _docs_table_row(law, f"{gamma:g}", f"{F2:g}")
+
+
+def test_the_python_example_of_the_models_page_runs():
+    """The softening two-link column of docs/models.md: bifurcation at 4C/a sin^2(pi/4) = 2."""
+    import contextlib
+    import io
+    import re as regex
+
+    text = (Path(__file__).parent.parent / "docs" / "models.md").read_text(encoding="utf-8")
+    (code,) = regex.findall(r"```python\n(.*?)```", text, regex.S)
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        exec(compile(code, "docs/models.md", "exec"), {})
+    law_class, load = printed.getvalue().split()
+    assert law_class == "hyperelastic" and abs(float(load) - 2.0) <= 1e-10

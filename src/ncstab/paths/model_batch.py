@@ -324,16 +324,17 @@ class ModelBatch:
             stiffness = stiffness - load[:, None, None] * jacobian
             dF_dload = -vector
         gaps = np.zeros((size, 0))
-        if self.definition.gaps:
+        if self.definition.gaps and not self.activate_secondary:
+            (gaps,) = compiled.gaps(u, parameters, derivatives=False)
+        elif self.definition.gaps:  # closed gaps carry springs: energy w kappa g^2 / 2
             gaps, gradient, hessian = compiled.gaps(u, parameters)
-            if self.activate_secondary:
-                weights = np.array([g.weight for g in self.definition.gaps])
-                closed = np.stack([(state & (1 << k)) > 0 for k in range(gaps.shape[1])], -1)
-                scale = np.where(closed, np.asarray(self.kappa).reshape(-1, 1) * weights * 1.0, 0.0)
-                forces_vector = forces_vector + np.einsum("bg,bg,bgn->bn", scale, gaps, gradient)
-                stiffness = stiffness + np.einsum(
-                    "bg,bgij->bij", scale, gradient[:, :, :, None] * gradient[:, :, None, :] + gaps[:, :, None, None] * hessian
-                )
+            weights = np.array([g.weight for g in self.definition.gaps])
+            closed = np.stack([(state & (1 << k)) > 0 for k in range(gaps.shape[1])], -1)
+            scale = np.where(closed, np.asarray(self.kappa).reshape(-1, 1) * weights, 0.0)
+            forces_vector = forces_vector + np.einsum("bg,bg,bgn->bn", scale, gaps, gradient)
+            stiffness = stiffness + np.einsum(
+                "bg,bgij->bij", scale, gradient[:, :, :, None] * gradient[:, :, None, :] + gaps[:, :, None, None] * hessian
+            )
         if first_contact is not None:
             q_contact, contact_forces = first_contact
             normal, tangential = contact_forces[..., 0], contact_forces[..., 1]

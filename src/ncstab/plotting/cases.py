@@ -121,6 +121,9 @@ def _values(
     array = dataset[name]
     if "dof" in tail and "dof" in array.dims and "dof" in array.coords:
         array = array.isel(dof=[0, 1])
+    members = [d for d in array.dims if d not in dims and d not in tail]
+    if members:  # a variable per contact (or spring) of a general system: its first member
+        array = array.isel({d: 0 for d in members})
     return np.asarray(array.transpose(*dims, *tail).values)
 
 

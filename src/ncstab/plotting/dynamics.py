@@ -118,24 +118,28 @@ def damping_map_figure(dataset: xr.Dataset, figure: Figure | None = None) -> Fig
     """The flutter load over the dashpots (b1, b2), and along b1 = b2 against b.
 
     The undamped flutter load (a case with b1 = b2 = 0 where the sweep has
-    one, else the dataset's ``flutter_onset_undamped`` attribute) is drawn as
-    a line: a vanishing damping does not tend to it.
+    one, else the closed form for the study's masses,
+    :func:`ncstab.systems.closed_forms.ziegler_flutter_load`) is drawn as a
+    line: a vanishing damping does not tend to it.  With masses 2m and m the
+    equal-damping limit 41/28 is drawn too.
     """
+    from ncstab.systems.closed_forms import ziegler_equal_damping_flutter_load, ziegler_flutter_load
+
     _require(dataset, ("flutter_onset_load",), "damping_map")
     for name in ("b1", "b2"):
         if name not in dataset.dims:
             raise ValueError("figure 'damping_map' needs a sweep over both dashpots b1 and b2")
-    field = dataset["flutter_onset_load"].isel(law=0).transpose("b2", "b1")
-    b1, b2 = dataset["b1"].values, dataset["b2"].values
+    values = np.asarray(dataset["flutter_onset_load"].isel(law=0).transpose("b2", "b1").values)
+    b1, b2 = np.asarray(dataset["b1"].values), np.asarray(dataset["b2"].values)
     positive = bool((b1 > 0).all() and (b2 > 0).all())
-    undamped = float(dataset.attrs.get("flutter_onset_undamped", np.nan))
-    if not positive:
-        zero = field.sel(b1=0.0, b2=0.0) if (0.0 in b1 and 0.0 in b2) else None
-        undamped = float(zero) if zero is not None else undamped
+    m1, m2 = (float(dataset.attrs.get(f"parameter_{m}", default)) for m, default in (("m1", 2.0), ("m2", 1.0)))
+    undamped = float(ziegler_flutter_load(m1, m2)) if dataset.attrs.get("system") == "ziegler" else np.nan
+    if 0.0 in b1 and 0.0 in b2:
+        undamped = float(values[np.flatnonzero(b2 == 0.0)[0], np.flatnonzero(b1 == 0.0)[0]])
     with rc_context(RC_PARAMS):
         figure = figure if figure is not None else Figure(figsize=(FIGURE_SIZE[0] * 1.6, FIGURE_SIZE[1]), layout="constrained")
         plane, diagonal = figure.subplots(1, 2)
-        mesh = plane.pcolormesh(b1, b2, field.values, shading="nearest", cmap="magma", gid="critical_load")
+        mesh = plane.pcolormesh(b1, b2, values, shading="nearest", cmap="magma", gid="critical_load")
         if positive:
             plane.set_xscale("log")
             plane.set_yscale("log")
@@ -146,12 +150,16 @@ def damping_map_figure(dataset: xr.Dataset, figure: Figure | None = None) -> Fig
         common = np.intersect1d(b1, b2)
         common = common[common > 0]
         if common.size:
-            along = np.array([float(field.sel(b1=b, b2=b)) for b in common])
+            along = np.array([values[np.flatnonzero(b2 == b)[0], np.flatnonzero(b1 == b)[0]] for b in common])
             diagonal.plot(common, along, "o-", markersize=3, gid="diagonal", label="damped, b₁ = b₂ = b")
             diagonal.set_xscale("log")
         if np.isfinite(undamped):
             diagonal.axhline(undamped, color="C3", linestyle=(0, (4, 2.5)), gid="undamped",
                              label=f"undamped: P = {undamped:.4g}")
+        if dataset.attrs.get("system") == "ziegler" and (m1, m2) == (2.0, 1.0):
+            limit = float(ziegler_equal_damping_flutter_load(0.0))
+            diagonal.axhline(limit, color="0.4", linestyle=":", gid="limit",
+                             label=f"b → 0 (Routh–Hurwitz): 41/28 = {limit:.4g}")
         diagonal.set_xlabel("damping b")
         diagonal.set_ylabel("flutter onset load P")
         diagonal.set_title("the destabilization paradox (b → 0)")

@@ -37,11 +37,15 @@ def lambdify_broadcast(arguments: Sequence[sp.Symbol], expressions: Sequence[sp.
     ]
     raw = sp.lambdify(list(arguments), cleaned, modules="numpy", cse=True)
 
+    count = len(cleaned)
+
     def evaluate(*values: np.ndarray) -> np.ndarray:
         arrays = [np.asarray(v, dtype=float) for v in values]
         shape = np.broadcast_shapes(*(a.shape for a in arrays))
-        outputs = raw(*arrays)
-        return np.stack([np.broadcast_to(np.asarray(o, dtype=float), shape) for o in outputs], axis=-1)
+        out = np.empty(shape + (count,))
+        for k, value in enumerate(raw(*arrays)):  # a constant entry broadcasts in the assignment
+            out[..., k] = value
+        return out
 
     return evaluate
 

@@ -43,6 +43,9 @@ __all__ = [
     "pure_shear_max_displacement",
     "turco_branch_length",
     "turco_load_rotation",
+    "ziegler_divergence_load",
+    "ziegler_equal_damping_flutter_load",
+    "ziegler_flutter_load",
 ]
 
 #: Shear spring models of the pure-shear limit: rotational shear springs
@@ -411,3 +414,31 @@ def pure_shear_max_displacement(alpha0: ArrayLike) -> np.ndarray:
         Delta_1*,max, shape of ``alpha0``.
     """
     return np.cos(np.asarray(alpha0, dtype=float)) - 0.5
+
+
+# --- Ziegler's pendulum (two bars, springs k, masses m1 at the middle, m2 at the tip) -------
+
+
+def ziegler_flutter_load(m1: ArrayLike = 2.0, m2: ArrayLike = 1.0) -> np.ndarray:
+    """Undamped flutter load of the follower-loaded pendulum, units k/l.
+
+    det(M mu + K) = m1 m2 mu^2 + (m1 + 5 m2 - 2 m2 P) mu + 1 with
+    M = [[m1 + m2, m2], [m2, m2]] and K = [[2 - P, P - 1], [-1, 1]]: the two
+    frequencies coalesce where its discriminant vanishes,
+    P = (m1 + 5 m2 - 2 sqrt(m1 m2)) / (2 m2): 7/2 - sqrt 2 for m1 = 2 m2.
+    """
+    m1, m2 = np.asarray(m1, dtype=float), np.asarray(m2, dtype=float)
+    return (m1 + 5 * m2 - 2 * np.sqrt(m1 * m2)) / (2 * m2)
+
+
+def ziegler_divergence_load() -> float:
+    """Divergence (and bifurcation) load of the dead-loaded pendulum: det K = P^2 - 3P + 1 = 0."""
+    return (3 - np.sqrt(5)) / 2
+
+
+def ziegler_equal_damping_flutter_load(b: ArrayLike) -> np.ndarray:
+    """Flutter load with equal dashpots b1 = b2 = b, masses 2m and m (Routh-Hurwitz on
+    det(M s^2 + C s + K) = 2 s^4 + 7b s^3 + (7 + b^2 - 2P) s^2 + 2b s + 1): 41/28 + b^2/2,
+    whose limit 41/28 < 7/2 - sqrt 2 as b -> 0 is Ziegler's destabilization paradox."""
+    b = np.asarray(b, dtype=float)
+    return 41 / 28 + b * b / 2

@@ -139,6 +139,7 @@ class CompiledSystem:
     families: tuple[CompiledFamily, ...]
     load_function: ArrayFunction | None
     gap_function: ArrayFunction | None
+    gap_derivatives_function: ArrayFunction | None
     domain_function: ArrayFunction | None
     mass_function: ArrayFunction | None
     damping_function: ArrayFunction | None
@@ -163,13 +164,14 @@ class CompiledSystem:
         """(g ``(B, G)``, dg/du ``(B, G, n)``, d2g/du2 ``(B, G, n, n)``) of the gaps."""
         n, size, count = self.n, u.shape[0], len(self.definition.gaps)
         if self.gap_function is None:
-            return np.zeros((size, 0)), np.zeros((size, 0, n)), np.zeros((size, 0, n, n))
-        values = self._call(self.gap_function, u, parameters)
-        g = values[:, :count]
+            empty = (np.zeros((size, 0)), np.zeros((size, 0, n)), np.zeros((size, 0, n, n)))
+            return empty if derivatives else empty[:1]
+        g = self._call(self.gap_function, u, parameters)
         if not derivatives:
             return (g,)
-        gradient = values[:, count : count * (1 + n)].reshape(size, count, n)
-        hessian = values[:, count * (1 + n) :].reshape(size, count, n, n)
+        values = self._call(self.gap_derivatives_function, u, parameters)
+        gradient = values[:, : count * n].reshape(size, count, n)
+        hessian = values[:, count * n :].reshape(size, count, n, n)
         return g, gradient, hessian
 
     def domain(self, u: np.ndarray, parameters: tuple) -> np.ndarray:
@@ -202,12 +204,13 @@ def compile_system(definition: SystemDefinition) -> CompiledSystem:
     if definition.load is not None:
         vector = sp.Matrix(definition.load.vector)
         load_function = lambdify_broadcast(arguments, list(vector) + list(vector.jacobian(sp.Matrix(dofs))))
-    gap_function = None
+    gap_function = gap_derivatives_function = None
     if definition.gaps:
         entries = [g.distance for g in definition.gaps]
         gradients = [sp.diff(g.distance, u) for g in definition.gaps for u in dofs]
         hessians = [sp.diff(g.distance, u, v) for g in definition.gaps for u in dofs for v in dofs]
-        gap_function = lambdify_broadcast(arguments, entries + gradients + hessians)
+        gap_function = lambdify_broadcast(arguments, entries)
+        gap_derivatives_function = lambdify_broadcast(arguments, gradients + hessians)
     domain_function = (
         lambdify_broadcast(arguments, [c.expression for c in definition.domain]) if definition.domain else None
     )
@@ -217,4 +220,7 @@ def compile_system(definition: SystemDefinition) -> CompiledSystem:
     damping_function = (
         lambdify_broadcast(arguments, [e for row in definition.damping for e in row]) if definition.damping else None
     )
-    return CompiledSystem(definition, families, load_function, gap_function, domain_function, mass_function, damping_function)
+    return CompiledSystem(
+        definition, families, load_function, gap_function, gap_derivatives_function, domain_function,
+        mass_function, damping_function,
+    )
