@@ -63,7 +63,7 @@ def test_every_shipped_study_runs_and_draws(study_path, tmp_path, capsys):
     printed = capsys.readouterr().out
     assert f"wrote {output}" in printed and "FAILED" not in printed
     ds = open_study(output)
-    interactions = SPRINGS if "theta" in ds else GRANULAR
+    interactions = SPRINGS if "moment" in ds else GRANULAR
     for name in CONTRACT + interactions + (["load"] if "load_parameter" in ds.attrs else []):
         assert name in ds, name
         if name not in ("status",):
@@ -73,7 +73,8 @@ def test_every_shipped_study_runs_and_draws(study_path, tmp_path, capsys):
         assert (f"{event}_load" in ds) == ("load_parameter" in ds.attrs)
     assert ds.attrs["study"] == study_path.read_text()
     assert ds.attrs["law_class"] and ds.attrs["ncstab_version"]
-    assert (ds["status"].astype(str) == "finished").all()
+    statuses = set(np.unique(ds["status"].values.astype(str)))
+    assert all(s == "finished" or s.startswith("stopped:") for s in statuses), statuses  # none failed
     study = load_study(study_path)
     for kind in study.figures:
         png = tmp_path / f"{output.stem}_{kind}.png"
