@@ -466,3 +466,13 @@ def test_the_python_example_of_the_models_page_runs():
         exec(compile(code, "docs/models.md", "exec"), {})
     law_class, load = printed.getvalue().split()
     assert law_class == "hyperelastic" and abs(float(load) - 2.0) <= 1e-10
+
+
+def test_a_sweep_whose_every_case_fails_at_the_start_is_recorded_not_raised():
+    """Holding F1 = eps from rest (where F1 = 0) fails each case with eps != 0 at
+    its stage start; with no case left the engine still evaluates an empty batch
+    (a regression: springs have no internal variables, and reshaping an empty
+    array with -1 raised)."""
+    programme = [{"hold": {"F2": 0.0, "F1": "eps"}, "drive": {"P": 0.3}}]
+    ds = follow(SystemSpec("column", links=3), None, programme, {"eps": [1e-4, -1e-4]}).to_dataset()
+    assert list(ds["status"].values.ravel()) == ["failed:bad_stage_start"] * 2

@@ -286,7 +286,7 @@ class ModelBatch:
             q, jacobian, hessian = cf.kinematics(u, parameters)
             args = self._law_arguments(f, cf.member_parameters(parameters, size))
             qs = [q[..., a] for a in range(q.shape[-1])]
-            internal_values = internal[:, self._internal_slices[f]].reshape(size, family.size, -1)
+            internal_values = internal[:, self._internal_slices[f]].reshape(size, family.size, len(self._internal[f]))
             branch_values = [
                 self._law_values(law, qs, internal_values, f, args) for law in family_law.branches
             ]
