@@ -131,7 +131,8 @@ def damping() -> None:
     print(
         f"   damping: 64 x 64 = 4,096 cases in {total:.2f} s ({1e3 * total / 4096:.2f} ms/case); "
         f"flutter load from {float(loads.min()):.4f} to {float(loads.max()):.4f}; "
-        f"along b1 = b2: {diagonal[0]:.6f} at b = 1e-4 (limit {ziegler_equal_damping_flutter_load():.6f} = 41/28), "
+        f"along b1 = b2: {diagonal[0]:.9f} at b = 1e-4 (closed form 41/28 + b^2/2 = "
+        f"{float(ziegler_equal_damping_flutter_load(1e-4)):.9f}), "
         f"undamped {ziegler_flutter_load():.6f}"
     )
 
