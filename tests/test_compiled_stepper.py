@@ -421,6 +421,26 @@ def test_unsupported_features_fall_back_to_the_numpy_stepper_bitwise(name):
     assert reference.succeeded.all(), reference.message
     path = follow(system, law, programme, parameters, compiled(options))
     assert_results_identical(reference.results[0], path.results[0])
+    # The archive says which stepper ran, and why the compiled one did not.
+    assert reference.results[0].engine == "numpy stepper"
+    assert path.results[0].engine == f"numpy stepper (backend = 'compiled' asked: {reason})"
+
+
+def test_the_dataset_records_which_engine_ran_each_law():
+    """``engine`` attribute: the compiled stepper with numba's version where it ran, the
+    numpy stepper with the reason where the compiled one was asked for and did not apply."""
+    import numba
+
+    laws = ["cundall_strack", "turco+no_tension"]
+    path = follow(IGNORE, laws, PRELOAD_STOP, PRELOAD_GRID, compiled(PathOptions()))
+    engine = path.to_dataset().attrs["engine"]
+    parts = dict(part.split(": ", 1) for part in engine.split("; "))
+    assert list(parts) == laws
+    assert parts["cundall_strack"].startswith(f"compiled stepper (numba {numba.__version__})")
+    assert parts["turco+no_tension"].startswith("numpy stepper (backend = 'compiled' asked: no_tension")
+    assert follow(IGNORE, laws[0], PRELOAD_STOP, PRELOAD_GRID).to_dataset().attrs["engine"] == (
+        "cundall_strack: numpy stepper"
+    )
 
 
 def test_unsupported_reason_is_none_for_a_smooth_linear_programme():

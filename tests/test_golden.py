@@ -53,7 +53,9 @@ def _documented_changes(golden: xr.Dataset, computed: xr.Dataset) -> xr.Dataset:
     * the ``law`` coordinate is an "interaction law" (springs have laws too);
     * the attribute ``system_settings`` states the system's structural
       settings (``reduction=symmetric``), and ``stage_drives`` what each
-      loading stage drives (the figures' axes).
+      loading stage drives (the figures' axes);
+    * the attribute ``engine`` says which stepper ran each law (issue 14):
+      the numpy stepper, for every law of these studies.
 
     and, in the variables (issue 16, dynamic stability):
 
@@ -77,6 +79,9 @@ def _documented_changes(golden: xr.Dataset, computed: xr.Dataset) -> xr.Dataset:
     changed["law"].attrs = dict(computed["law"].attrs)
     changed.attrs["system_settings"] = computed.attrs["system_settings"]
     changed.attrs["stage_drives"] = computed.attrs["stage_drives"]
+    laws = [str(law) for law in computed["law"].values]
+    assert computed.attrs["engine"] == "; ".join(f"{law}: numpy stepper" for law in laws)
+    changed.attrs["engine"] = computed.attrs["engine"]
     for name in computed.data_vars:
         if name.startswith(("bifurcation_", "divergence_")) or name == "flutter_onset_frequency":
             found = computed[name]

@@ -8,7 +8,10 @@ import numpy as np
 
 from ncstab.paths.programme import EVENTS
 
-__all__ = ["CaseResult", "as_strings", "empty_events"]
+__all__ = ["NUMPY_ENGINE", "CaseResult", "as_strings", "empty_events"]
+
+#: The ``engine`` of a batch the numpy stepper ran.
+NUMPY_ENGINE = "numpy stepper"
 
 
 @dataclass
@@ -41,6 +44,10 @@ class CaseResult:
         stored states); ``force_gap`` (B, C, n), F at the end minus F at the
         start of the turn; ``tangential_drift`` (B, C[, m]), the same for T
         (the internal variable of a rate law); ``stage`` (C,).
+    engine
+        Which stepper ran the batch, in words (the archive's ``engine``
+        attribute): ``"numpy stepper"``, or the compiled stepper with numba's
+        version, or why the compiled one asked for did not apply.
     """
 
     steps: dict[str, np.ndarray]
@@ -50,6 +57,7 @@ class CaseResult:
     events: dict[str, dict[str, np.ndarray]]
     counters: dict[str, np.ndarray]
     cycles: dict[str, np.ndarray] = field(default_factory=dict)
+    engine: str = NUMPY_ENGINE
 
 
 def as_strings(values: np.ndarray) -> np.ndarray:

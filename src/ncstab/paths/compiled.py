@@ -20,7 +20,8 @@ kernel.  Stage entry, the first stored state of a stage and the assembly of
 the result stay with the numpy stepper: this module runs each case from the
 start of a stage to its end (target, stop event or failure).
 
-numba is optional (``pip install 'ncstab[compiled]'``).  Each law's loop is
+numba is a dependency of ncstab (it stays optional at import: without it the
+compiled backend asks for it).  Each law's loop is
 generated as a module in a cache directory and compiled once per machine
 (about 10 s; numba caches the machine code beside the module).
 """
@@ -274,7 +275,7 @@ def stage_runner(batch: Any) -> StageLoop:
     """
     if not NUMBA_AVAILABLE:
         raise RuntimeError(
-            "PathOptions.backend = 'compiled' needs numba: pip install 'ncstab[compiled]' "
+            "PathOptions.backend = 'compiled' needs numba, a dependency of ncstab: pip install numba "
             "(or use backend = 'numpy')"
         )
     (kernel,) = batch._kernels

@@ -329,6 +329,7 @@ def _attributes(result: "PathResult") -> dict:
         "secondary_contacts": result.model.secondary_contacts,
         "normal": result.model.normal,
         "law_class": "; ".join(f"{law}: {classes[law]}" for law in result.laws),
+        "engine": "; ".join(f"{law}: {case.engine}" for law, case in zip(result.laws, result.results)),
         "force_unit": result.force_unit,
         "source": definition.reference or definition.title,
     }

@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any, Callable
 import numpy as np
 
 from ncstab.paths import stage_entry
-from ncstab.paths.case_result import CaseResult, as_strings, empty_events
+from ncstab.paths.case_result import NUMPY_ENGINE, CaseResult, as_strings, empty_events
 from ncstab.paths.contacts import switch_contacts
 from ncstab.paths.crossings import event_tables, locate_crossings, store_first_events
 from ncstab.paths.cycle_turns import CycleTurns
@@ -174,7 +174,7 @@ class BatchStepper:
         #: Per case: 0 on the path followed from the start, +-1 once it has left along a
         #: bifurcating branch that way (stored with every state of a general model).
         self.branch_index = np.zeros(size, dtype=int)
-        self.compiled = _compiled_stepper(batch, programme, options, secondary_contacts)
+        self.compiled, self.engine = _compiled_stepper(batch, programme, options, secondary_contacts)
 
     @property
     def probe_step(self) -> float:
@@ -204,6 +204,7 @@ class BatchStepper:
             events=self.events,
             counters={"accepted": self.accepted, "rejected": self.rejected, "located": self.located},
             cycles=self.turns.tables,
+            engine=self.engine,
         )
 
     # --- ending cases and storing states ---------------------------------------------------------
@@ -572,25 +573,29 @@ class BatchStepper:
                 stage_entry.enter(self, cases[finished_index == k], int(k) + 1)
 
 
+
 def _compiled_stepper(
     batch: Any, programme: LoadingProgramme, options: PathOptions, secondary_contacts: str
-) -> CompiledStages | None:
-    """The compiled stage loop where ``options.backend`` asks for it and it applies.
+) -> tuple[CompiledStages | None, str]:
+    """The compiled stage loop where ``options.backend`` asks for it and it applies,
+    and the engine that runs the batch, in words (the archive's ``engine`` attribute).
 
     Raises RuntimeError (from :func:`ncstab.paths.compiled.stage_runner`) when
     the compiled backend is asked for and numba is missing.
     """
     if options.backend != "compiled":
-        return None
+        return None, NUMPY_ENGINE
     from ncstab.paths import compiled
 
     if not compiled.NUMBA_AVAILABLE:
         compiled.stage_runner(batch)  # raises, naming the extra to install
-    if compiled.unsupported_reason(batch, programme, secondary_contacts) is not None:
-        return None
+    reason = compiled.unsupported_reason(batch, programme, secondary_contacts)
+    if reason is not None:
+        return None, f"{NUMPY_ENGINE} (backend = 'compiled' asked: {reason})"
     from ncstab.paths.compiled_stages import CompiledStages
 
-    return CompiledStages(batch, compiled.stage_runner(batch))
+    engine = f"compiled stepper (numba {compiled.numba.__version__}), numpy stepper for what it leaves"
+    return CompiledStages(batch, compiled.stage_runner(batch)), engine
 
 
 def follow_cases(

@@ -340,6 +340,8 @@ class ArchiveStream:
         self._step_variables: dict[str, int] = {}  # name: axis of step
         self._step_integers: dict[str, tuple[int, ...]] = {}  # name: chunk shape
         self._classes: dict[str, str] = {}
+        #: Per law, the engines its chunks report (each chunk's ``engine`` attribute).
+        self._engines: dict[str, list[str]] = {}
         self._direct: list[str] = []  # variables filled by direct chunk writes
         self._length = 0
 
@@ -461,6 +463,10 @@ class ArchiveStream:
                 target = values[block.start - encoded.start : block.stop - encoded.start]
                 self._file[name][(slice(k, k + 1), *box)] = target.reshape((1, *block.shape, *values.shape[1:])).astype(object)
         self._classes[encoded.law] = str(encoded.template["law_class"].values[0])
+        engine = str(encoded.template.attrs.get("engine", "")).partition(": ")[2]
+        engines = self._engines.setdefault(encoded.law, [])
+        if engine and engine not in engines:
+            engines.append(engine)
         self._written.append((k, encoded.start, encoded.stop, encoded.steps))
 
     def _pad_integers(self) -> None:
@@ -498,6 +504,10 @@ class ArchiveStream:
             # As in a whole run's Dataset (ncstab.paths.PathResult.to_dataset): every law's class.
             handle.variables["law_class"][:] = np.array([self._classes[law] for law in self.laws], dtype=object)
             handle.setncattr("law_class", "; ".join(f"{law}: {self._classes[law]}" for law in self.laws))
+            if any(self._engines.values()):
+                handle.setncattr(
+                    "engine", "; ".join(f"{law}: {' / '.join(self._engines.get(law, []))}" for law in self.laws)
+                )
         digests = self._digests()
         with netCDF4.Dataset(self.path, "a") as handle:
             handle.setncattr(DIGEST_ATTRIBUTE, format_digests(digests))
