@@ -38,8 +38,9 @@ import numpy as np
 
 from ncstab.paths.dataset import parameter_attributes
 from ncstab.paths.variables import CASE_DIMENSION
-from ncstab.studies.archive import COMPRESSION, ENGINE, MIN_COMPRESSED_SIZE
+from ncstab.studies.archive import COMPRESSION, MIN_COMPRESSED_SIZE, integer_fill_value
 from ncstab.studies.checksums import DIGEST_ATTRIBUTE, format_digests, hdf5_chunk, variable_digest
+from ncstab.studies.streaming_events import HeldEventTables, events_met
 
 if TYPE_CHECKING:  # pragma: no cover
     import xarray as xr
@@ -226,6 +227,9 @@ class EncodedChunk:
     strings
         The other variables with a ``case`` dimension (text), as arrays of the
         chunk's cases.
+    events_met
+        The events some case of the chunk meets (an archive holding back the
+        tables of unmet events, :mod:`~ncstab.studies.streaming_events`, needs it).
     """
 
     law: str
@@ -235,6 +239,7 @@ class EncodedChunk:
     template: "xr.Dataset"
     chunks: list[tuple[str, tuple[int, ...], bytes]] = field(default_factory=list)
     strings: dict[str, np.ndarray] = field(default_factory=dict)
+    events_met: tuple[str, ...] = ()
 
 
 def _full_dims(dims: tuple[str, ...], sweep: tuple[str, ...]) -> tuple[str, ...]:
@@ -274,6 +279,7 @@ def encode_chunk(
     sizes = dict(dataset.sizes)
     encoded = EncodedChunk(
         law=law, start=start, stop=stop, steps=steps, template=dataset.isel({CASE_DIMENSION: slice(0, 0)}),
+        events_met=events_met(dataset),
     )
     for name, variable in dataset.variables.items():
         if CASE_DIMENSION not in variable.dims or name == CASE_DIMENSION:
@@ -315,6 +321,9 @@ class ArchiveStream:
         The study's parameter grid (the swept dimensions after ``law``).
     layout
         The blocks of the archive's chunks (:class:`BlockLayout` of the grid's shape).
+    unmet_events_left_out
+        Events whose tables are written only if some case meets them (the lean
+        default, :class:`~ncstab.studies.streaming_events.HeldEventTables`).
 
     Notes
     -----
@@ -327,7 +336,8 @@ class ArchiveStream:
     """
 
     def __init__(
-        self, path: str | os.PathLike[str], laws: tuple[str, ...], grid: "ParameterGrid", layout: BlockLayout
+        self, path: str | os.PathLike[str], laws: tuple[str, ...], grid: "ParameterGrid", layout: BlockLayout,
+        unmet_events_left_out: tuple[str, ...] = (),
     ) -> None:
         if tuple(layout.shape) != tuple(grid.shape):
             raise ValueError(f"a block layout of shape {layout.shape} does not fit a sweep of shape {grid.shape}")
@@ -342,6 +352,8 @@ class ArchiveStream:
         self._classes: dict[str, str] = {}
         self._direct: list[str] = []  # variables filled by direct chunk writes
         self._length = 0
+        self._held = HeldEventTables(tuple(unmet_events_left_out))
+        self._sizes: dict[str, int] = {}
 
     @property
     def sweep(self) -> tuple[str, ...]:
@@ -402,15 +414,20 @@ class ArchiveStream:
                 if coordinates:
                     attrs["coordinates"] = " ".join(coordinates)
             chunk = variable_chunk(dims, sizes, self.layout, self.sweep) if _is_encoded(variable) else None
+            fill = integer_fill_value(str(name)) if name in template.data_vars and variable.dtype.kind in "iu" else None
+            if chunk is not None and self._held.holds(str(name)):
+                self._held.define_later(str(name), variable.dtype, dims, attrs, chunk, fill)
+                continue
             if chunk is not None:
                 self._direct.append(str(name))
-            self._define(handle, str(name), variable.dtype, dims, attrs, name in index_names, sizes, chunk)
+            self._define(handle, str(name), variable.dtype, dims, attrs, name in index_names, sizes, chunk, fill)
             if "step" in dims:
                 self._step_variables[str(name)] = dims.index("step")
                 if chunk is not None and variable.dtype.kind in "iu":
                     self._step_integers[str(name)] = chunk
             if "law" not in dims and name != "step":
                 handle.variables[name][:] = variable.values.astype(object) if variable.dtype.kind == "U" else variable.values
+        self._sizes = sizes
         unattached = [c for c in auxiliary if c not in attached]
         if unattached:
             handle.setncattr("coordinates", " ".join(unattached))
@@ -422,7 +439,7 @@ class ArchiveStream:
     @staticmethod
     def _define(
         handle: Any, name: str, dtype: np.dtype, dims: tuple[str, ...], attrs: dict[str, Any], is_index: bool,
-        sizes: dict[str, int], chunk: tuple[int, ...] | None,
+        sizes: dict[str, int], chunk: tuple[int, ...] | None, integer_fill: int | None = None,
     ) -> None:
         numeric = dtype.kind in "biuf"
         options: dict[str, Any] = {}
@@ -432,6 +449,8 @@ class ArchiveStream:
             options.update(COMPRESSION)
         if dtype.kind == "f" and not is_index:
             options["fill_value"] = np.nan
+        elif integer_fill is not None:
+            options["fill_value"] = dtype.type(integer_fill)
         variable = handle.createVariable(name, dtype if numeric else str, dims, **options)
         variable.setncatts(attrs)
 
@@ -454,7 +473,11 @@ class ArchiveStream:
         k = self.laws.index(encoded.law)
         self._extend_steps(encoded.steps)
         for name, offset, data in encoded.chunks:
-            self._file[name].id.write_direct_chunk((k, *offset), data)
+            if name in self._held.definitions:
+                self._held.keep(name, (k, *offset), data)
+            else:
+                self._file[name].id.write_direct_chunk((k, *offset), data)
+        self._held.record_met(encoded.events_met)
         for name, values in encoded.strings.items():
             for block in blocks:
                 box = tuple(slice(o, o + n) for o, n in zip(block.origin, block.shape))
@@ -492,7 +515,18 @@ class ArchiveStream:
         self._pad_integers()
         self._file.close()
         self._file = None
+        import h5py
         import netCDF4
+
+        # The tables of the held-back events some case met (the lean default); their filters checked.
+        written = self._held.write(self.path, self._define, self._sizes)
+        if written:
+            self._file, self._direct = h5py.File(self.path, "r"), written
+            try:
+                self._check_pipelines()
+            finally:
+                self._file.close()
+                self._file = None
 
         with netCDF4.Dataset(self.path, "a") as handle:
             # As in a whole run's Dataset (ncstab.paths.PathResult.to_dataset): every law's class.
@@ -504,11 +538,10 @@ class ArchiveStream:
 
     def _digests(self) -> dict[str, str]:
         """SHA-256 of each variable without HDF5's checksum filter, as the archive's reader sees it."""
-        import xarray as xr
-
         from ncstab.studies.archive import normalise_dataset
+        from ncstab.studies.verification import open_undecoded_fill
 
-        with xr.open_dataset(self.path, engine=ENGINE) as dataset:
+        with open_undecoded_fill(self.path) as dataset:
             names = [name for name, variable in dataset.variables.items() if not variable.encoding.get("fletcher32")]
             on_disk = normalise_dataset(dataset[names] if names else dataset)
             return {str(name): variable_digest(on_disk.variables[name].values) for name in names}
