@@ -68,6 +68,10 @@ def _documented_changes(golden: xr.Dataset, computed: xr.Dataset) -> xr.Dataset:
       it is positive exactly where K has complex eigenvalues (the golden's
       discriminant < 0) or a negative one;
     * ``flutter_onset_frequency`` is added (NaN: no flutter onset in these studies).
+
+    and (issue 19, CF details): the numeric coordinates ``step`` and ``cycle``
+    have ``units = "1"``.  (Integer data variables are written with a
+    ``_FillValue``, -1; it is an encoding of the file, not in the Dataset.)
     """
     names = computed["dof"].values
     changed = golden.assign_coords(
@@ -88,6 +92,10 @@ def _documented_changes(golden: xr.Dataset, computed: xr.Dataset) -> xr.Dataset:
             assert bool(np.all(found.isnull() | (found == -1))), f"{name} found on the reduced diamond"
             changed[name] = found
     changed["flutter"] = _checked_flutter(golden, computed)
+    for name in ("step", "cycle"):
+        if name in golden.coords:
+            assert "units" not in golden[name].attrs
+            changed[name].attrs = {"units": "1", **golden[name].attrs}
     return changed
 
 

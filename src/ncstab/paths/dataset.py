@@ -31,8 +31,9 @@ if TYPE_CHECKING:  # pragma: no cover
     import xarray
 
     from ncstab.paths.result import PathResult
+    from ncstab.systems import SystemDefinition
 
-__all__ = ["parameter_attributes", "path_dataset"]
+__all__ = ["event_field_dims", "event_variable_attributes", "parameter_attributes", "path_dataset"]
 
 #: Event fields that every system has (the interaction variables and ``load`` are the system's).
 COMMON_EVENT_FIELDS = ("s", "s_lower", "s_upper", "stage", "u", "F", "K")
@@ -173,25 +174,13 @@ def path_dataset(result: "PathResult", directions: int | None = None, spectrum: 
         if units:
             attrs["units"] = units
         data[name] = (dims, values, attrs)
-    event_fields = list(COMMON_EVENT_FIELDS) + list(members) + (["load"] if has_load else [])
     for event in EVENTS:
-        for suffix in event_fields:
-            units, long_name, description = EVENT_FIELDS[suffix] if suffix in EVENT_FIELDS else (
-                VARIABLES[suffix][0], f"{suffix} at {{event}}", f"{VARIABLES[suffix][1]} at the first {{event}}"
-            )
+        for suffix, dims in event_field_dims(result.model.definition).items():
             values = np.stack([r.events[event][suffix] for r in result.results])
             values = values.reshape(shape + values.shape[2:])
-            if suffix in members:
-                dims = sweep_dims + ([members[suffix][0]] if members[suffix][0] else [])
-            else:
-                dims = sweep_dims + {2: ["dof"], 3: ["i", "j"]}.get(values.ndim - len(shape) + 1, [])
             if suffix == "stage":
                 values = values.astype(np.int32)
-            data[f"{event}_{suffix}"] = (
-                dims,
-                values,
-                {"units": units, "long_name": long_name.format(event=event), "description": description.format(event=event)},
-            )
+            data[f"{event}_{suffix}"] = (sweep_dims + dims, values, event_variable_attributes(event, suffix))
     if result.model.definition.mass is not None:
         frequency = _dynamic_matrices(
             result,
@@ -199,9 +188,36 @@ def path_dataset(result: "PathResult", directions: int | None = None, spectrum: 
             np.stack([r.events["flutter_onset"]["K"] for r in result.results]).reshape(shape + (n, n)),
             critical=True,
         )
-        units, long_name, description = FLUTTER_FREQUENCY
-        data["flutter_onset_frequency"] = (sweep_dims, frequency, {"units": units, "long_name": long_name, "description": description})
+        data["flutter_onset_frequency"] = (sweep_dims, frequency, event_variable_attributes("flutter_onset", "frequency"))
     return xr.Dataset(data, coords=_coordinates(result, length, directions, n_cycles), attrs=_attributes(result))
+
+
+def event_field_dims(definition: "SystemDefinition") -> dict[str, list[str]]:
+    """The fields of every event's table (``<event>_<field>``) and their dimensions after
+    the sweep's: those of every system (:data:`COMMON_EVENT_FIELDS`), the interaction
+    variables (along their member dimension where a family has several) and ``load``."""
+    fields: dict[str, list[str]] = {name: [] for name in COMMON_EVENT_FIELDS}
+    fields.update(u=["dof"], F=["dof"], K=["i", "j"])
+    for family, names, dimension in family_fields(definition):
+        for name in names:
+            fields[name] = [dimension] if family.size > 1 else []
+    if definition.load is not None:
+        fields["load"] = []
+    return fields
+
+
+def event_variable_attributes(event: str, field: str) -> dict[str, str]:
+    """``units``, ``long_name`` and ``description`` of ``<event>_<field>`` (``field``
+    ``"frequency"``: ``flutter_onset_frequency``)."""
+    if field == "frequency":
+        units, long_name, description = FLUTTER_FREQUENCY
+    elif field in EVENT_FIELDS:
+        units, long_name, description = EVENT_FIELDS[field]
+    else:
+        units, long_name, description = (
+            VARIABLES[field][0], f"{field} at {{event}}", f"{VARIABLES[field][1]} at the first {{event}}"
+        )
+    return {"units": units, "long_name": long_name.format(event=event), "description": description.format(event=event)}
 
 
 def _case_parameters(result: "PathResult", extra: tuple[int, ...]) -> tuple[np.ndarray, ...]:
@@ -275,7 +291,7 @@ def _coordinates(result: "PathResult", length: int, directions: int | None, n_cy
             "long_name": "computed class of the law",
             "description": "hyperelastic, weakly hypoelastic or strongly hypoelastic (ncstab.symbolic.classify)",
         }),
-        "step": ("step", np.arange(length, dtype=np.int32), {"long_name": "stored state index"}),
+        "step": ("step", np.arange(length, dtype=np.int32), {"units": "1", "long_name": "stored state index"}),
         "dof": ("dof", dofs, {
             "long_name": "degree of freedom",
             "description": "the system's generalized displacements; their conjugate forces are the coordinate force",
@@ -300,7 +316,7 @@ def _coordinates(result: "PathResult", length: int, directions: int | None, n_cy
     if n_cycles:
         cycles = result.results[0].cycles
         coords["cycle"] = ("cycle", np.arange(1, n_cycles + 1, dtype=np.int32), {
-            "long_name": "cycle number", "description": "turns of the cycle stages, in programme order"})
+            "units": "1", "long_name": "cycle number", "description": "turns of the cycle stages, in programme order"})
         units, long_name, description = VARIABLES["cycle_stage"]
         coords["cycle_stage"] = ("cycle", cycles["stage"].astype(np.int32), {
             "units": units, "long_name": long_name, "description": description})

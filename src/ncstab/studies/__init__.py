@@ -15,6 +15,7 @@ from ncstab.studies.archive import normalise_dataset, open_study, open_study_laz
 from ncstab.studies.chunked import run_study_chunked
 from ncstab.studies.errors import ArchiveError, InvalidInputError, NcstabError, ResumeError, RunError, RunInterrupted
 from ncstab.studies.expressions import ExpressionError, evaluate_expression
+from ncstab.studies.recomputed import tangent_operators
 from ncstab.studies.run import default_output_path, run_study
 from ncstab.studies.study import (
     DEFAULT_FIGURES,
@@ -46,5 +47,6 @@ __all__ = [
     "parse_study",
     "run_study",
     "run_study_chunked",
+    "tangent_operators",
     "write_dataset",
 ]

@@ -35,6 +35,8 @@ __all__ = [
     "atomic_destination",
     "COMPRESSION",
     "ENGINE",
+    "INTEGER_FILL_VALUE",
+    "integer_fill_value",
     "normalise_dataset",
     "open_study",
     "open_study_lazily",
@@ -52,6 +54,16 @@ COMPRESSION = {"zlib": True, "complevel": 1, "shuffle": True, "fletcher32": True
 #: nothing on them and each chunked HDF5 variable costs a few kB of index (a checksum
 #: filter would make them chunked too: they carry a digest attribute instead).
 MIN_COMPRESSED_SIZE = 64
+#: ``_FillValue`` of the integer data variables: -1, which no count (``n_steps``,
+#: ``accepted_steps``) or stage index (``stage``, ``<event>_stage``) takes, and
+#: which pads ``stage`` past a case's last step and ``<event>_stage`` where the
+#: event never occurs.
+INTEGER_FILL_VALUE = -1
+#: Integer data variables for which -1 is a value (``branch_index``: the branch
+#: taken one way): their ``_FillValue`` is netCDF's default for int32, which
+#: none of them takes.
+NETCDF_DEFAULT_INT_FILL = -2147483647
+_MINUS_ONE_IS_A_VALUE = ("branch_index",)
 #: Random part of a temporary file's name (hex digits).
 _TEMPORARY_TOKEN = 8
 
@@ -117,6 +129,12 @@ def normalise_dataset(dataset: xr.Dataset) -> xr.Dataset:
     return dataset
 
 
+def integer_fill_value(name: str) -> int:
+    """The ``_FillValue`` an integer data variable is written with (CF: the value that
+    means "no value"): :data:`INTEGER_FILL_VALUE` but where -1 is a value."""
+    return NETCDF_DEFAULT_INT_FILL if name in _MINUS_ONE_IS_A_VALUE else INTEGER_FILL_VALUE
+
+
 def _is_compressed(variable: Any) -> bool:
     """Whether :func:`write_dataset` compresses (and checksums with Fletcher-32) a variable."""
     return variable.dtype.kind in "biuf" and variable.ndim > 0 and variable.size >= MIN_COMPRESSED_SIZE
@@ -126,7 +144,8 @@ def _encoding(dataset: xr.Dataset) -> dict[str, dict[str, Any]]:
     """Compression for numeric arrays; strings stay NetCDF strings, readable with ncdump.
 
     Coordinate variables (``gamma``, ``step``...) get no ``_FillValue``: CF
-    forbids missing values in them.
+    forbids missing values in them.  Integer data variables get
+    :func:`integer_fill_value` (floating-point ones get NaN from xarray).
     """
     encoding: dict[str, dict[str, Any]] = {}
     for name, variable in dataset.variables.items():
@@ -136,6 +155,8 @@ def _encoding(dataset: xr.Dataset) -> dict[str, dict[str, Any]]:
             encoding[name] = dict(COMPRESSION)
         if name in dataset.dims:
             encoding.setdefault(name, {})["_FillValue"] = None
+        elif name in dataset.data_vars and variable.dtype.kind in "iu":
+            encoding.setdefault(name, {})["_FillValue"] = variable.dtype.type(integer_fill_value(str(name)))
     return encoding
 
 
@@ -284,7 +305,7 @@ def remove_stale_temporaries(destination: str | os.PathLike[str]) -> list[FilePa
     return removed
 
 
-def open_study(path: str | os.PathLike[str]) -> xr.Dataset:
+def open_study(path: str | os.PathLike[str], fill_missing_events: bool = False) -> xr.Dataset:
     """Read an archive written by :func:`write_dataset` fully into memory, verified.
 
     The file is closed on return.  The Dataset is identical
@@ -299,6 +320,12 @@ def open_study(path: str | os.PathLike[str]) -> xr.Dataset:
     ----------
     path
         A ``.nc`` archive.
+    fill_missing_events
+        Put back the tables of the events a lean archive left out because no
+        case meets them (its attribute ``events_left_out``): NaN, their
+        ``_stage`` -1, as an archive with every variable holds them
+        (:func:`~ncstab.studies.archive_selection.fill_left_out_events`); the
+        attribute is then removed.
 
     Returns
     -------
@@ -320,6 +347,10 @@ def open_study(path: str | os.PathLike[str]) -> xr.Dataset:
                 raise ArchiveError(path, f"variable {name!r} cannot be read (damaged data?): {error}") from None
         result = verified(normalise_dataset(dataset), path)
     check_archive(result, path)
+    if fill_missing_events:
+        from ncstab.studies.archive_selection import fill_left_out_events
+
+        result = fill_left_out_events(result)
     return result
 
 

@@ -50,7 +50,9 @@ from typing import TYPE_CHECKING
 from ncstab.paths.api import CaseRange, ParameterGrid, case_batch
 from ncstab.paths.stepper import follow_cases
 from ncstab.paths.result import PathResult
+from ncstab.paths.programme import EVENTS
 from ncstab.studies.archive import atomic_destination, open_study
+from ncstab.studies.archive_selection import archive_selection
 from ncstab.studies.cluster import (
     DEFAULT_SCHEDULER_TIMEOUT,
     DISTRIBUTED_MISSING,
@@ -378,7 +380,9 @@ def _run_chunks(
 
             bar = stack.enter_context(tqdm(total=sum(c.size for c in chunks), unit="case", desc="ncstab", leave=False))
         grid = ParameterGrid.from_mapping(study.parameters)
-        archive = ArchiveStream(directory / ARCHIVE_IN_PROGRESS, tuple(study.laws), grid, layout)
+        selection = archive_selection(study)
+        held = [e for e in EVENTS if e not in selection.needed_events] if selection.leave_out_unseen_events else []
+        archive = ArchiveStream(directory / ARCHIVE_IN_PROGRESS, tuple(study.laws), grid, layout, tuple(held))
 
         def append(chunk: Chunk, encoded: EncodedChunk) -> None:
             with writing(directory / ARCHIVE_IN_PROGRESS):

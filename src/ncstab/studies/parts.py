@@ -43,7 +43,7 @@ __all__ = [
 ]
 
 #: Version of the part-file layout (stored in the manifest).
-PARTS_FORMAT = 3
+PARTS_FORMAT = 4
 MANIFEST = "manifest.json"
 
 
@@ -141,6 +141,7 @@ def write_part(directory: FilePath, chunk: Chunk, digest: str, encoded: EncodedC
         "start": encoded.start,
         "stop": encoded.stop,
         "steps": encoded.steps,
+        "events_met": list(encoded.events_met),
         "chunks": [[name, list(offset), len(data)] for name, offset, data in encoded.chunks],
         "strings": list(encoded.strings),
         "attrs": {k: _json_attribute(v) for k, v in template.attrs.items()},
@@ -194,6 +195,7 @@ def read_part(directory: FilePath, chunk: Chunk, digest: str) -> EncodedChunk:
         position += length
     return EncodedChunk(
         law=header["law"], start=header["start"], stop=header["stop"], steps=header["steps"],
+        events_met=tuple(header["events_met"]),
         template=xr.Dataset(data, coords=coordinates, attrs=attrs),
         chunks=chunks, strings=strings,
     )

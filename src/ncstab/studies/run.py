@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 
 from ncstab.paths.api import follow
 from ncstab.studies.archive import normalise_dataset
+from ncstab.studies.archive_selection import archive_selection, leave_out_unseen_events, select_variables
 from ncstab.studies.maps import add_state_maps
 from ncstab.studies.study import Study
 
@@ -43,7 +44,9 @@ def run_study(study: Study, progress: bool = False) -> xr.Dataset:
     -------
     xarray.Dataset
         Every case, failed ones included (their ``status`` and ``message`` say
-        what happened).
+        what happened); the variables the study keeps (``[output] variables``,
+        or the default: every one up to 1,000 cases per law, the lean
+        selection above, docs/archive.md).
     """
     path = follow(
         study.system,
@@ -54,14 +57,17 @@ def run_study(study: Study, progress: bool = False) -> xr.Dataset:
         progress=progress,
         study_text=study.text,
     )
-    return study_dataset(study, path)
+    dataset = study_dataset(study, path)
+    return leave_out_unseen_events(dataset, archive_selection(study))
 
 
 def study_dataset(study: Study, path: "PathResult") -> xr.Dataset:
     """The archive Dataset of a study from its followed paths (one place for every run mode).
 
     ``path.to_dataset`` with the study's ``[map]``, the study's attributes,
-    in the on-disk representation.
+    the variables the study keeps (:func:`~ncstab.studies.archive_selection.select_variables`;
+    the tables of events no case meets are left out of the whole sweep only,
+    by the caller), in the on-disk representation.
     """
     study_map = study.map
     dataset = path.to_dataset(directions=study_map.directions if study_map else None, spectrum=study.spectrum)
@@ -75,7 +81,7 @@ def study_dataset(study: Study, path: "PathResult") -> xr.Dataset:
             "figures": ",".join(study.figures),
         }
     )
-    return normalise_dataset(dataset)
+    return normalise_dataset(select_variables(dataset, archive_selection(study)))
 
 
 def default_output_path(study: Study) -> FilePath:

@@ -30,7 +30,6 @@ import datetime as _dt
 import itertools
 import math
 import os
-from dataclasses import dataclass, field
 from pathlib import Path as FilePath
 from typing import TYPE_CHECKING, Any
 
@@ -38,15 +37,17 @@ import numpy as np
 
 from ncstab.paths.dataset import parameter_attributes
 from ncstab.paths.variables import CASE_DIMENSION
-from ncstab.studies.archive import COMPRESSION, ENGINE, MIN_COMPRESSED_SIZE
+from ncstab.studies.archive import COMPRESSION, MIN_COMPRESSED_SIZE, integer_fill_value
 from ncstab.studies.checksums import DIGEST_ATTRIBUTE, format_digests, hdf5_chunk, variable_digest
+from ncstab.studies.streaming_events import HeldEventTables, events_met
+from ncstab.studies.streaming_layout import Block, BlockLayout, EncodedChunk
 
 if TYPE_CHECKING:  # pragma: no cover
     import xarray as xr
 
     from ncstab.paths.api import ParameterGrid
 
-__all__ = ["ArchiveStream", "BlockLayout", "EncodedChunk", "encode_chunk"]
+__all__ = ["ArchiveStream", "Block", "BlockLayout", "EncodedChunk", "encode_chunk"]
 
 #: HDF5 filter identifiers, in the pipeline order the encoder follows
 #: (:func:`~ncstab.studies.checksums.hdf5_chunk`): Fletcher-32, shuffle, deflate.
@@ -60,108 +61,6 @@ CHUNK_ELEMENTS = 65536
 BLOCK_CASES = 1024
 #: Padding of integer variables past a case's last step (as in a whole run's Dataset).
 INTEGER_PADDING = -1
-
-
-@dataclass(frozen=True)
-class Block:
-    """Flat cases ``start:stop`` of the sweep, which are also the box ``origin + shape``."""
-
-    start: int
-    stop: int
-    origin: tuple[int, ...]
-    shape: tuple[int, ...]
-
-
-@dataclass(frozen=True)
-class BlockLayout:
-    """How the swept dimensions of an archive are cut into HDF5 chunks.
-
-    A chunk spans ``extent`` values of the swept dimension ``axis``, every value
-    of the dimensions after it and one value of those before it, so that its
-    cases are consecutive in flat (C) order: a block.  Blocks tile the sweep in
-    order; the last block along ``axis`` may be shorter.
-
-    Parameters
-    ----------
-    shape
-        Sizes of the swept dimensions (``()`` for a single case).
-    axis, extent
-        The dimension the blocks cut, and the values of it per block.
-    """
-
-    shape: tuple[int, ...]
-    axis: int
-    extent: int
-
-    @classmethod
-    def for_grid(cls, shape: tuple[int, ...], max_cases: int) -> "BlockLayout":
-        """The layout of the largest blocks of at most ``max_cases`` cases (at least one value)."""
-        shape = tuple(int(n) for n in shape)
-        if not shape:
-            return cls((), 0, 1)
-        tail = 1
-        for axis in reversed(range(len(shape))):
-            extent = min(shape[axis], max(1, int(max_cases) // tail))
-            if extent < shape[axis] or axis == 0:
-                return cls(shape, axis, extent)
-            tail *= shape[axis]
-        raise AssertionError("unreachable")  # pragma: no cover
-
-    @property
-    def tail(self) -> int:
-        """Cases per value of ``axis`` (the product of the later swept sizes)."""
-        return math.prod(self.shape[self.axis + 1 :])
-
-    @property
-    def chunk(self) -> tuple[int, ...]:
-        """The HDF5 chunk shape along the swept dimensions."""
-        if not self.shape:
-            return ()
-        return (1,) * self.axis + (self.extent,) + self.shape[self.axis + 1 :]
-
-    @property
-    def block_cases(self) -> int:
-        """Cases of a whole block."""
-        return self.extent * self.tail
-
-    def blocks(self, start: int, stop: int) -> list[Block]:
-        """The blocks that make up the flat cases ``start:stop``.
-
-        Raises
-        ------
-        ValueError
-            ``start:stop`` is not a run of whole blocks.
-        """
-        size = math.prod(self.shape)
-        if not 0 <= start <= stop <= size:
-            raise ValueError(f"cases {start}:{stop} are not within a sweep of shape {self.shape}")
-        out = []
-        position = start
-        while position < stop:
-            index = tuple(int(i) for i in np.unravel_index(position, self.shape)) if self.shape else ()
-            if self.shape and (index[self.axis] % self.extent or any(index[self.axis + 1 :])):
-                raise ValueError(
-                    f"cases {start}:{stop} do not start on a block of {self.block_cases} cases "
-                    f"(the archive's chunks along the sweep {self.shape} are {self.chunk})"
-                )
-            rows = min(self.extent, self.shape[self.axis] - index[self.axis]) if self.shape else 1
-            shape = (1,) * self.axis + (rows,) + self.shape[self.axis + 1 :] if self.shape else ()
-            out.append(Block(position, position + rows * self.tail, index, shape))
-            position += rows * self.tail
-        if position != stop:
-            raise ValueError(f"cases {start}:{stop} do not end on a block of {self.block_cases} cases")
-        return out
-
-    def runs(self, max_cases: int) -> list[tuple[int, int]]:
-        """The sweep cut into runs of whole blocks of at most ``max_cases`` cases (at least one block)."""
-        every = self.blocks(0, math.prod(self.shape))
-        runs: list[tuple[int, int]] = []
-        for block in every:
-            if runs and block.stop - runs[-1][0] <= max_cases:
-                runs[-1] = (runs[-1][0], block.stop)
-            else:
-                runs.append((block.start, block.stop))
-        return runs
 
 
 def _is_encoded(variable: Any) -> bool:
@@ -205,38 +104,6 @@ def _fill(dtype: np.dtype) -> Any:
     return np.nan if dtype.kind == "f" else INTEGER_PADDING
 
 
-@dataclass
-class EncodedChunk:
-    """A chunk of cases of one law, ready to be copied into the archive.
-
-    Attributes
-    ----------
-    law, start, stop
-        The law and the flat cases ``start:stop``.
-    steps
-        Length of the chunk's ``step`` dimension (its longest case).
-    template
-        The chunk's Dataset without its cases (``case`` of size 0): the
-        variables, their dimensions, attributes and the values of those
-        without a ``case`` dimension.
-    chunks
-        ``(variable, chunk offset, compressed bytes)`` of every HDF5 chunk of
-        the numeric variables (:func:`deflate_shuffled`); the offset is in the
-        dimensions after ``law`` (the archive puts the law's index first).
-    strings
-        The other variables with a ``case`` dimension (text), as arrays of the
-        chunk's cases.
-    """
-
-    law: str
-    start: int
-    stop: int
-    steps: int
-    template: "xr.Dataset"
-    chunks: list[tuple[str, tuple[int, ...], bytes]] = field(default_factory=list)
-    strings: dict[str, np.ndarray] = field(default_factory=dict)
-
-
 def _full_dims(dims: tuple[str, ...], sweep: tuple[str, ...]) -> tuple[str, ...]:
     """A chunk variable's dimensions in the whole archive: ``case`` becomes the swept parameters."""
     out: list[str] = []
@@ -274,6 +141,7 @@ def encode_chunk(
     sizes = dict(dataset.sizes)
     encoded = EncodedChunk(
         law=law, start=start, stop=stop, steps=steps, template=dataset.isel({CASE_DIMENSION: slice(0, 0)}),
+        events_met=events_met(dataset),
     )
     for name, variable in dataset.variables.items():
         if CASE_DIMENSION not in variable.dims or name == CASE_DIMENSION:
@@ -315,6 +183,9 @@ class ArchiveStream:
         The study's parameter grid (the swept dimensions after ``law``).
     layout
         The blocks of the archive's chunks (:class:`BlockLayout` of the grid's shape).
+    unmet_events_left_out
+        Events whose tables are written only if some case meets them (the lean
+        default, :class:`~ncstab.studies.streaming_events.HeldEventTables`).
 
     Notes
     -----
@@ -327,7 +198,8 @@ class ArchiveStream:
     """
 
     def __init__(
-        self, path: str | os.PathLike[str], laws: tuple[str, ...], grid: "ParameterGrid", layout: BlockLayout
+        self, path: str | os.PathLike[str], laws: tuple[str, ...], grid: "ParameterGrid", layout: BlockLayout,
+        unmet_events_left_out: tuple[str, ...] = (),
     ) -> None:
         if tuple(layout.shape) != tuple(grid.shape):
             raise ValueError(f"a block layout of shape {layout.shape} does not fit a sweep of shape {grid.shape}")
@@ -344,6 +216,8 @@ class ArchiveStream:
         self._engines: dict[str, list[str]] = {}
         self._direct: list[str] = []  # variables filled by direct chunk writes
         self._length = 0
+        self._held = HeldEventTables(tuple(unmet_events_left_out))
+        self._sizes: dict[str, int] = {}
 
     @property
     def sweep(self) -> tuple[str, ...]:
@@ -404,15 +278,20 @@ class ArchiveStream:
                 if coordinates:
                     attrs["coordinates"] = " ".join(coordinates)
             chunk = variable_chunk(dims, sizes, self.layout, self.sweep) if _is_encoded(variable) else None
+            fill = integer_fill_value(str(name)) if name in template.data_vars and variable.dtype.kind in "iu" else None
+            if chunk is not None and self._held.holds(str(name)):
+                self._held.define_later(str(name), variable.dtype, dims, attrs, chunk, fill)
+                continue
             if chunk is not None:
                 self._direct.append(str(name))
-            self._define(handle, str(name), variable.dtype, dims, attrs, name in index_names, sizes, chunk)
+            self._define(handle, str(name), variable.dtype, dims, attrs, name in index_names, sizes, chunk, fill)
             if "step" in dims:
                 self._step_variables[str(name)] = dims.index("step")
                 if chunk is not None and variable.dtype.kind in "iu":
                     self._step_integers[str(name)] = chunk
             if "law" not in dims and name != "step":
                 handle.variables[name][:] = variable.values.astype(object) if variable.dtype.kind == "U" else variable.values
+        self._sizes = sizes
         unattached = [c for c in auxiliary if c not in attached]
         if unattached:
             handle.setncattr("coordinates", " ".join(unattached))
@@ -424,7 +303,7 @@ class ArchiveStream:
     @staticmethod
     def _define(
         handle: Any, name: str, dtype: np.dtype, dims: tuple[str, ...], attrs: dict[str, Any], is_index: bool,
-        sizes: dict[str, int], chunk: tuple[int, ...] | None,
+        sizes: dict[str, int], chunk: tuple[int, ...] | None, integer_fill: int | None = None,
     ) -> None:
         numeric = dtype.kind in "biuf"
         options: dict[str, Any] = {}
@@ -434,6 +313,8 @@ class ArchiveStream:
             options.update(COMPRESSION)
         if dtype.kind == "f" and not is_index:
             options["fill_value"] = np.nan
+        elif integer_fill is not None:
+            options["fill_value"] = dtype.type(integer_fill)
         variable = handle.createVariable(name, dtype if numeric else str, dims, **options)
         variable.setncatts(attrs)
 
@@ -456,7 +337,11 @@ class ArchiveStream:
         k = self.laws.index(encoded.law)
         self._extend_steps(encoded.steps)
         for name, offset, data in encoded.chunks:
-            self._file[name].id.write_direct_chunk((k, *offset), data)
+            if name in self._held.definitions:
+                self._held.keep(name, (k, *offset), data)
+            else:
+                self._file[name].id.write_direct_chunk((k, *offset), data)
+        self._held.record_met(encoded.events_met)
         for name, values in encoded.strings.items():
             for block in blocks:
                 box = tuple(slice(o, o + n) for o, n in zip(block.origin, block.shape))
@@ -498,7 +383,18 @@ class ArchiveStream:
         self._pad_integers()
         self._file.close()
         self._file = None
+        import h5py
         import netCDF4
+
+        # The tables of the held-back events some case met (the lean default); their filters checked.
+        written = self._held.write(self.path, self._define, self._sizes)
+        if written:
+            self._file, self._direct = h5py.File(self.path, "r"), written
+            try:
+                self._check_pipelines()
+            finally:
+                self._file.close()
+                self._file = None
 
         with netCDF4.Dataset(self.path, "a") as handle:
             # As in a whole run's Dataset (ncstab.paths.PathResult.to_dataset): every law's class.
@@ -514,11 +410,10 @@ class ArchiveStream:
 
     def _digests(self) -> dict[str, str]:
         """SHA-256 of each variable without HDF5's checksum filter, as the archive's reader sees it."""
-        import xarray as xr
-
         from ncstab.studies.archive import normalise_dataset
+        from ncstab.studies.verification import open_undecoded_fill
 
-        with xr.open_dataset(self.path, engine=ENGINE) as dataset:
+        with open_undecoded_fill(self.path) as dataset:
             names = [name for name, variable in dataset.variables.items() if not variable.encoding.get("fletcher32")]
             on_disk = normalise_dataset(dataset[names] if names else dataset)
             return {str(name): variable_digest(on_disk.variables[name].values) for name in names}

@@ -23,6 +23,7 @@ from ncstab.paths.options import PathOptions, SystemSpec
 from ncstab.paths.programme import (
     LoadingProgramme,
 )
+from ncstab.studies.archive_selection import read_variables, study_variable_names
 from ncstab.studies.figure_fit import figure_fit
 from ncstab.studies.study_fields import (
     DEFAULT_FIGURES,
@@ -124,6 +125,11 @@ class Study:
     max_cases
         ``[options] max_cases``: the most cases ``ncstab run`` runs
         (:data:`DEFAULT_MAX_CASES` unless given).
+    variables
+        ``[output] variables``: the data variables the archive keeps (event
+        names stand for their tables), ``"all"``, or None for the default
+        (every one up to 1,000 cases per law, the lean archive above:
+        :func:`~ncstab.studies.archive_selection.archive_selection`).
     """
 
     name: str
@@ -141,6 +147,7 @@ class Study:
     spectrum: bool = False
     user_laws: tuple[LawDefinition, ...] = ()
     max_cases: int = DEFAULT_MAX_CASES
+    variables: str | tuple[str, ...] | None = None
 
     def law_definition(self, name: str) -> LawDefinition:
         """The definition of one of :attr:`laws` (a user law of the file or a catalogue law)."""
@@ -211,6 +218,9 @@ def parse_study(text: str, path: str | None = None) -> Study:
     fit = None if errors.items else figure_fit(programme, parameters, study_map, definitions, system)
     figures, output = output_section(data, errors, fit)
     spectrum = spectrum_option(data, errors, figures, system)
+    output_table = data.get("output") if isinstance(data.get("output"), dict) else {}
+    available = None if errors.items else study_variable_names(system, programme, study_map, spectrum)
+    variables = read_variables(output_table, errors, available, figures)
     if not errors.items and programme is not None:
         check_stages_do_something(programme, parameters, errors)
 
@@ -238,6 +248,7 @@ def parse_study(text: str, path: str | None = None) -> Study:
         map=study_map,
         user_laws=tuple(user_laws.values()),
         max_cases=max_cases,
+        variables=variables,
     )
 
 

@@ -64,7 +64,7 @@ STAGE_KEYS = ("hold", "drive", "stop_at", "cycle", "at_bifurcation")
 CYCLE_KEYS = ("center", "turns", "direction", "dofs")
 
 
-OUTPUT_KEYS = ("figures", "file", "spectrum")
+OUTPUT_KEYS = ("figures", "file", "spectrum", "variables")
 
 
 #: Figure kinds drawn from the dynamic spectrum (which they store).

@@ -43,10 +43,6 @@ def opened(path: str | os.PathLike[str]) -> Iterator["xr.Dataset"]:
         No such file, a directory, or a file netCDF cannot open (empty,
         truncated, not NetCDF/HDF5).
     """
-    import xarray as xr
-
-    from ncstab.studies.archive import ENGINE
-
     path = FilePath(path)
     if not path.exists():
         raise ArchiveError(path, "no such file")
@@ -55,11 +51,34 @@ def opened(path: str | os.PathLike[str]) -> Iterator["xr.Dataset"]:
     if path.stat().st_size == 0:
         raise ArchiveError(path, "the file is empty")
     try:
-        dataset = xr.open_dataset(path, engine=ENGINE)
+        dataset = open_undecoded_fill(path)
     except Exception as error:  # netCDF's errors are OSError, RuntimeError, ValueError...
         raise ArchiveError(path, f"netCDF cannot open it ({error})") from None
     with dataset:
         yield dataset
+
+
+#: Attributes of the CF missing-value convention: in the file, not in the Dataset.
+FILL_ATTRIBUTES = ("_FillValue", "missing_value")
+
+
+def open_undecoded_fill(path: str | os.PathLike[str]) -> "xr.Dataset":
+    """A NetCDF file open with xarray, integer variables kept integers.
+
+    xarray would turn an integer variable with a ``_FillValue`` into floats
+    with NaN; here no value is masked (every floating-point fill of an ncstab
+    archive is NaN already) and the ``_FillValue`` attributes are left out of
+    the Dataset, as they are out of the Dataset that was written.
+    """
+    import xarray as xr
+
+    from ncstab.studies.archive import ENGINE
+
+    dataset = xr.open_dataset(path, engine=ENGINE, mask_and_scale=False)
+    for variable in dataset.variables.values():
+        for name in FILL_ATTRIBUTES:
+            variable.attrs.pop(name, None)
+    return dataset
 
 
 def verified(dataset: "xr.Dataset", path: str | os.PathLike[str]) -> "xr.Dataset":
