@@ -33,15 +33,13 @@ def _format_table(rows: list[list[str]], header: list[str]) -> str:
 def command_laws(args: argparse.Namespace) -> int:
     """Print the law catalogue, or a study's laws, with each law's computed class;
     ``--explain NAME``: the derivation of one law's class (exit 2: bad study or name)."""
-    import sympy as sp
-
     from ncstab.laws import law_definition, law_names
-    from ncstab.studies import StudyFileError, load_study
-    from ncstab.symbolic import classify, kinematic_integrability
-    from ncstab.symbolic.explain import explain_law
+    from ncstab.symbolic import class_summary, kinematic_integrability, law_explanation
 
     study = None
     if args.study is not None:
+        from ncstab.studies import StudyFileError, load_study
+
         try:
             study = load_study(args.study)
         except StudyFileError as error:
@@ -57,15 +55,14 @@ def command_laws(args: argparse.Namespace) -> int:
             where = f" in {args.study}" if study is not None else " (a user law needs its study: ncstab laws STUDY.toml --explain NAME)"
             print(f"ncstab laws: {error}{where}", file=sys.stderr)
             return 2
-        print(explain_law(definition))
+        print(law_explanation(definition))
         return 0
     names = list(study.laws) if study is not None else law_names(with_modifiers=args.all)
     rows = []
     for name in names:
         definition = study.law_definition(name) if study is not None else law_definition(name)
-        result = classify(definition)
-        energy = sp.sstr(result.energy) if result.energy is not None else "-"
-        rows.append([name, result.kind, definition.equations, energy, result.reason])
+        summary = class_summary(definition)  # classified once, then read from the cache directory
+        rows.append([name, summary.kind, definition.equations, summary.energy or "-", summary.reason])
     if study is not None:
         print(f"{args.study}: the laws of study {study.name!r}")
     print(_format_table(rows, ["law", "class", "seed", "energy W(l, alpha)", "decided by"]))
