@@ -66,10 +66,9 @@ def test_module_version_in_a_subprocess_prints_the_version():
 
 
 def test_every_public_name_is_importable_as_before():
-    from ncstab import DiamondChain, follow, make_law, open_study  # noqa: F401
-
     import ncstab.paths
     import ncstab.studies
+    from ncstab import DiamondChain, follow, make_law, open_study  # noqa: F401
 
     for package in (ncstab, ncstab.paths, ncstab.studies):
         for name in package.__all__:

@@ -74,7 +74,12 @@ __getattr__, __dir__ = lazy_attributes(
 )
 
 if TYPE_CHECKING:  # pragma: no cover
-    from ncstab.studies.archive import normalise_dataset, open_study, open_study_lazily, write_dataset
+    from ncstab.studies.archive import (
+        normalise_dataset,
+        open_study,
+        open_study_lazily,
+        write_dataset,
+    )
     from ncstab.studies.chunked import run_study_chunked
     from ncstab.studies.errors import (
         ArchiveError,
@@ -86,4 +91,11 @@ if TYPE_CHECKING:  # pragma: no cover
     )
     from ncstab.studies.expressions import ExpressionError, evaluate_expression
     from ncstab.studies.run import default_output_path, run_study
-    from ncstab.studies.study import DEFAULT_FIGURES, FIGURE_KINDS, Study, StudyFileError, load_study, parse_study
+    from ncstab.studies.study import (
+        DEFAULT_FIGURES,
+        FIGURE_KINDS,
+        Study,
+        StudyFileError,
+        load_study,
+        parse_study,
+    )

@@ -133,7 +133,7 @@ def check_study_text(study: str, path: str | os.PathLike[str]) -> None:
     import ncstab
     from ncstab.cache import read_entry, write_entry
 
-    key = hashlib.sha256(f"ncstab {ncstab.__version__}\n{study}".encode("utf-8")).hexdigest()
+    key = hashlib.sha256(f"ncstab {ncstab.__version__}\n{study}".encode()).hexdigest()
     if read_entry(VALID_STUDIES_KIND, key) == {"valid": True}:
         return
     from ncstab.studies.study import StudyFileError, parse_study
