@@ -13,6 +13,12 @@ from ncstab.cli import main
 from strategies import BASE_LAWS, EXPECTED_CLASS
 
 
+@pytest.fixture(autouse=True)
+def _cache_in_a_temporary_directory(tmp_path, monkeypatch):
+    """``ncstab laws`` keeps the classes it derives in the cache directory: here a temporary one."""
+    monkeypatch.setenv("NCSTAB_CACHE_DIR", str(tmp_path / "cache"))
+
+
 def _table_rows(text: str) -> dict[str, list[str]]:
     """Rows of the law table by law name (columns are separated by 2+ spaces)."""
     rows = {}

@@ -1085,8 +1085,10 @@ def test_a_directory_another_user_cannot_write_exits_3(tmp_path, capfd):
         study.chmod(0o644)  # readable by anyone through the descriptor the child opens as root
         code_text = (
             "import os, sys\n"
-            # (the standard library of this interpreter may be readable by root only: import first)
+            # (the standard library of this interpreter may be readable by root only: import first,
+            # the package's public names too: they are imported on first use)
             "import encodings.ascii, ncstab.cli, ncstab.studies.preflight, ncstab.studies.outputs\n"
+            "import ncstab.studies.run, ncstab.studies.study, ncstab.studies.chunked, ncstab.paths.api\n"
             "study = os.open(sys.argv[1], os.O_RDONLY)\n"
             f"os.setgroups([]); os.setgid({nobody.pw_gid}); os.setuid({nobody.pw_uid})\n"
             "sys.exit(ncstab.cli.main(['run', f'/dev/fd/{study}', '-o', sys.argv[2]]))\n"

@@ -5,14 +5,38 @@ The main entry points:
 * :func:`ncstab.follow` -- follow a loading programme for laws and sweeps;
 * :func:`ncstab.make_law`, :class:`ncstab.DiamondChain`,
   :func:`ncstab.tangent_operator` -- the building blocks.
+
+The names are imported on first use (:mod:`ncstab.lazy_imports`), so that
+``import ncstab`` and ``ncstab --version`` import neither sympy nor scipy.
 """
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from ncstab.lazy_imports import lazy_attributes
 
 __version__ = "0.1.0"
 
-from ncstab.laws import make_law  # noqa: E402
-from ncstab.paths import PathOptions, SystemSpec, follow  # noqa: E402
-from ncstab.operators import tangent_operator  # noqa: E402
-from ncstab.studies import open_study  # noqa: E402
-from ncstab.systems import DiamondChain  # noqa: E402
-
 __all__ = ["DiamondChain", "PathOptions", "SystemSpec", "follow", "make_law", "open_study", "tangent_operator", "__version__"]
+
+__getattr__, __dir__ = lazy_attributes(
+    __name__,
+    {
+        "DiamondChain": "ncstab.systems",
+        "PathOptions": "ncstab.paths",
+        "SystemSpec": "ncstab.paths",
+        "follow": "ncstab.paths",
+        "make_law": "ncstab.laws",
+        "open_study": "ncstab.studies",
+        "tangent_operator": "ncstab.operators",
+    },
+    globals(),
+)
+
+if TYPE_CHECKING:  # pragma: no cover
+    from ncstab.laws import make_law
+    from ncstab.operators import tangent_operator
+    from ncstab.paths import PathOptions, SystemSpec, follow
+    from ncstab.studies import open_study
+    from ncstab.systems import DiamondChain

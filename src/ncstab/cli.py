@@ -33,15 +33,13 @@ def _format_table(rows: list[list[str]], header: list[str]) -> str:
 def command_laws(args: argparse.Namespace) -> int:
     """Print the law catalogue, or a study's laws, with each law's computed class;
     ``--explain NAME``: the derivation of one law's class (exit 2: bad study or name)."""
-    import sympy as sp
-
     from ncstab.laws import law_definition, law_names
-    from ncstab.studies import StudyFileError, load_study
-    from ncstab.symbolic import classify, kinematic_integrability
-    from ncstab.symbolic.explain import explain_law
+    from ncstab.symbolic import class_summary, kinematic_integrability, law_explanation
 
     study = None
     if args.study is not None:
+        from ncstab.studies import StudyFileError, load_study
+
         try:
             study = load_study(args.study)
         except StudyFileError as error:
@@ -57,15 +55,14 @@ def command_laws(args: argparse.Namespace) -> int:
             where = f" in {args.study}" if study is not None else " (a user law needs its study: ncstab laws STUDY.toml --explain NAME)"
             print(f"ncstab laws: {error}{where}", file=sys.stderr)
             return 2
-        print(explain_law(definition))
+        print(law_explanation(definition))
         return 0
     names = list(study.laws) if study is not None else law_names(with_modifiers=args.all)
     rows = []
     for name in names:
         definition = study.law_definition(name) if study is not None else law_definition(name)
-        result = classify(definition)
-        energy = sp.sstr(result.energy) if result.energy is not None else "-"
-        rows.append([name, result.kind, definition.equations, energy, result.reason])
+        summary = class_summary(definition)  # classified once, then read from the cache directory
+        rows.append([name, summary.kind, definition.equations, summary.energy or "-", summary.reason])
     if study is not None:
         print(f"{args.study}: the laws of study {study.name!r}")
     print(_format_table(rows, ["law", "class", "seed", "energy W(l, alpha)", "decided by"]))
@@ -74,51 +71,6 @@ def command_laws(args: argparse.Namespace) -> int:
     print("Variables are dimensionless (seed Eq. 37): l = l/2R, N, T in units of 2R k_n,")
     print("W in units of k_n (2R)^2 per contact, gamma = k_t/k_n.")
     return 0
-
-
-def _status_summary(dataset) -> list[str]:
-    """Lines summarising case statuses: finished, stopped at events, failed with reasons."""
-    import numpy as np
-
-    status = np.asarray(dataset["status"].values).astype(str).ravel()
-    message = np.asarray(dataset["message"].values).astype(str).ravel()
-    lines = [f"  cases: {status.size}"]
-    finished = int(np.sum(status == "finished"))
-    lines.append(f"  finished: {finished}")
-    stopped = sorted({s for s in status if s.startswith("stopped:")})
-    for state in stopped:
-        lines.append(f"  stopped at {state.split(':', 1)[1]}: {int(np.sum(status == state))}")
-    failed = sorted({s for s in status if s.startswith("failed:")})
-    for state in failed:
-        which = status == state
-        example = message[which][0]
-        lines.append(f"  FAILED ({state.split(':', 1)[1]}): {int(which.sum())} -- e.g. {example}")
-    return lines
-
-
-def _event_summary(dataset) -> list[str]:
-    import numpy as np
-
-    from ncstab.paths.programme import EVENTS
-
-    lines = []
-    for event in EVENTS:
-        name = f"{event}_s"
-        if name not in dataset or f"{event}_F" not in dataset:
-            continue
-        found = np.isfinite(np.asarray(dataset[name].values))
-        if found.any():
-            if f"{event}_load" in dataset:  # a system with a load parameter: the load at the event
-                label = str(dataset.attrs.get("load_parameter", "P"))
-                values = np.asarray(dataset[f"{event}_load"].values)[found]
-            else:  # the first dof's force
-                label = str(dataset["force"].values[0]) if "force" in dataset.coords else "F1"
-                values = np.asarray(dataset[f"{event}_F"].isel(dof=0).values)[found]
-            lines.append(
-                f"  {event}: found in {int(found.sum())} of {found.size} cases"
-                f" ({label} from {np.nanmin(values):.6g} to {np.nanmax(values):.6g})"
-            )
-    return lines or ["  no events located"]
 
 
 def _study_output(study, args: argparse.Namespace) -> Path:
@@ -230,10 +182,11 @@ def _draw(output: Path, progress: bool = False) -> tuple[list[Path], list[str]]:
     from ncstab.plotting import draw_figures
     from ncstab.studies import open_study_lazily
     from ncstab.studies.errors import RunError, RunInterrupted, WriteError, write_error
+    from ncstab.studies.summary import status_lines
 
     try:
         with open_study_lazily(output) as dataset:
-            return draw_figures(dataset, output.parent, stem=output.stem, progress=progress), _status_summary(dataset)
+            return draw_figures(dataset, output.parent, stem=output.stem, progress=progress), status_lines(dataset)
     except (RunError, RunInterrupted) as error:
         error.kept = error.kept or f"the archive {output} was written, its figures were not all drawn"
         raise
@@ -305,28 +258,23 @@ def command_plot(args: argparse.Namespace) -> int:
 
 
 def command_info(args: argparse.Namespace) -> int:
-    """Summarise an archive: study, sweep, statuses, events."""
+    """Summarise an archive: study, sweep, statuses, then each law's statuses and events
+    (:func:`ncstab.studies.summary.archive_summary`; only the archive's small variables are read)."""
+    from ncstab.studies.archive_contents import open_archive_contents
+    from ncstab.studies.errors import InvalidInputError
+    from ncstab.studies.summary import archive_summary
+
     path = Path(args.archive)
-    ds = _open_archive(args.archive)
-    attrs = ds.attrs
-    print(f"{path}")
-    print(f"  study: {attrs.get('study_name', '?')} -- {attrs.get('study_description', '')}".rstrip(" -"))
-    print(f"  created {attrs.get('created', '?')} with ncstab {attrs.get('ncstab_version', '?')}")
-    print(f"  system: {attrs.get('system', '?')} (normal {attrs.get('normal', '?')}, secondary contacts "
-          f"{attrs.get('secondary_contacts', '?')}), forces in units of {attrs.get('force_unit', '?')}")
-    classes = ds["law_class"].values if "law_class" in ds.variables else ["?"] * ds.sizes["law"]
-    laws = [f"{law} ({cls})" for law, cls in zip(ds["law"].values, classes)]
-    print(f"  laws: {', '.join(laws)}")
-    sweep = [d for d in ds["status"].dims if d != "law"]
-    for name in sweep:
-        values = ", ".join(f"{v:g}" for v in ds[name].values)
-        print(f"  sweep {name}: [{values}]")
-    fixed = {k[len('parameter_'):]: v for k, v in attrs.items() if k.startswith("parameter_")}
-    if fixed:
-        print("  fixed: " + ", ".join(f"{k} = {v:g}" for k, v in fixed.items()))
-    print(f"  stored states: up to {ds.sizes.get('step', 0)} per case")
-    for line in _status_summary(ds) + _event_summary(ds):
-        print(line)
+    if not path.exists():
+        raise InvalidInputError(f"no such archive: {path}")
+    with open_archive_contents(path) as contents:
+        lines = archive_summary(contents, path) if contents is not None else None
+    if lines is None:  # encodings only xarray decodes
+        from ncstab.studies import open_study_lazily
+
+        with open_study_lazily(path) as dataset:
+            lines = archive_summary(dataset, path)
+    print("\n".join(lines))
     return 0
 
 

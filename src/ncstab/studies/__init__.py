@@ -9,22 +9,17 @@ and optionally on a dask cluster (:func:`run_study_chunked`, ``docs/scale.md``).
 What can go wrong is a named error with an exit code (:mod:`ncstab.studies.errors`,
 ``docs/when-things-go-wrong.md``): an archive that is not readable
 (:class:`ArchiveError`), an output in use, a full disk, a lost cluster...
+
+The names are imported on first use (:mod:`ncstab.lazy_imports`):
+reading an archive (``ncstab info``) or naming an error does not import the
+study machinery (sympy, the path engine).
 """
 
-from ncstab.studies.archive import normalise_dataset, open_study, open_study_lazily, write_dataset
-from ncstab.studies.chunked import run_study_chunked
-from ncstab.studies.errors import ArchiveError, InvalidInputError, NcstabError, ResumeError, RunError, RunInterrupted
-from ncstab.studies.expressions import ExpressionError, evaluate_expression
-from ncstab.studies.recomputed import tangent_operators
-from ncstab.studies.run import default_output_path, run_study
-from ncstab.studies.study import (
-    DEFAULT_FIGURES,
-    FIGURE_KINDS,
-    Study,
-    StudyFileError,
-    load_study,
-    parse_study,
-)
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from ncstab.lazy_imports import lazy_attributes
 
 __all__ = [
     "ArchiveError",
@@ -50,3 +45,60 @@ __all__ = [
     "tangent_operators",
     "write_dataset",
 ]
+
+__getattr__, __dir__ = lazy_attributes(
+    __name__,
+    {
+        "normalise_dataset": "ncstab.studies.archive",
+        "open_study": "ncstab.studies.archive",
+        "open_study_lazily": "ncstab.studies.archive",
+        "write_dataset": "ncstab.studies.archive",
+        "run_study_chunked": "ncstab.studies.chunked",
+        "ArchiveError": "ncstab.studies.errors",
+        "InvalidInputError": "ncstab.studies.errors",
+        "NcstabError": "ncstab.studies.errors",
+        "ResumeError": "ncstab.studies.errors",
+        "RunError": "ncstab.studies.errors",
+        "RunInterrupted": "ncstab.studies.errors",
+        "ExpressionError": "ncstab.studies.expressions",
+        "evaluate_expression": "ncstab.studies.expressions",
+        "tangent_operators": "ncstab.studies.recomputed",
+        "default_output_path": "ncstab.studies.run",
+        "run_study": "ncstab.studies.run",
+        "DEFAULT_FIGURES": "ncstab.studies.study",
+        "FIGURE_KINDS": "ncstab.studies.study",
+        "Study": "ncstab.studies.study",
+        "StudyFileError": "ncstab.studies.study",
+        "load_study": "ncstab.studies.study",
+        "parse_study": "ncstab.studies.study",
+    },
+    globals(),
+)
+
+if TYPE_CHECKING:  # pragma: no cover
+    from ncstab.studies.archive import (
+        normalise_dataset,
+        open_study,
+        open_study_lazily,
+        write_dataset,
+    )
+    from ncstab.studies.chunked import run_study_chunked
+    from ncstab.studies.errors import (
+        ArchiveError,
+        InvalidInputError,
+        NcstabError,
+        ResumeError,
+        RunError,
+        RunInterrupted,
+    )
+    from ncstab.studies.expressions import ExpressionError, evaluate_expression
+    from ncstab.studies.recomputed import tangent_operators
+    from ncstab.studies.run import default_output_path, run_study
+    from ncstab.studies.study import (
+        DEFAULT_FIGURES,
+        FIGURE_KINDS,
+        Study,
+        StudyFileError,
+        load_study,
+        parse_study,
+    )

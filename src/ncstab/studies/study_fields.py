@@ -15,33 +15,11 @@ import sympy as sp
 
 from ncstab.laws.definition import ParameterSpec
 from ncstab.studies.expressions import ExpressionError, evaluate_expression
+from ncstab.studies.figure_kinds import DEFAULT_FIGURES, FIGURE_KINDS
 
 #: Sections of a study file, in the order they are documented.
 SECTIONS = ("study", "system", "laws", "parameters", "loading", "options", "map", "output")
 
-
-#: Figure kinds a study may ask for in ``[output] figures``: those
-#: ``ncstab.plotting.FIGURE_KINDS`` draws (the cycle kinds for programmes with cycle stages).
-FIGURE_KINDS = (
-    "load_rotation",
-    "load_displacement",
-    "load_displacement_rotation",
-    "stability",
-    "cycle_work",
-    "cycle_paths",
-    "cycle_force_drift",
-    "stability_diagram",
-    "second_order_work_map",
-    "second_order_work_polar",
-    "state_map",
-    "root_locus",
-    "frequencies",
-    "damping_map",
-)
-
-
-#: Figures drawn when ``[output] figures`` is not given.
-DEFAULT_FIGURES = ("load_displacement", "load_rotation")
 
 
 #: Most cases a study may have unless ``[options] max_cases`` (or ``--max-cases``) allows more.

@@ -11,24 +11,28 @@ archive with :func:`check_archive`; each raises
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import os
 import re
 from collections.abc import Iterator
 from pathlib import Path as FilePath
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ncstab.studies.checksums import DIGEST_ATTRIBUTE, parse_digests, variable_digest
 from ncstab.studies.errors import ArchiveError
+from ncstab.studies.figure_kinds import FIGURE_KINDS
 
 if TYPE_CHECKING:  # pragma: no cover
     import xarray as xr
 
-__all__ = ["REQUIRED_VARIABLES", "check_archive", "known_status", "opened", "verified"]
+__all__ = ["REQUIRED_VARIABLES", "check_archive", "check_digests", "check_study_text", "known_status", "opened", "verified"]
 
 #: Variables every archive has (with the coordinate ``law``).
 REQUIRED_VARIABLES = ("status", "message", "n_steps")
+#: The cache's folder of study texts found valid (:func:`check_study_text`).
+VALID_STUDIES_KIND = "valid_studies"
 #: A failure reason or an event name: lower-case words joined by '_'.
 _WORD = re.compile(r"[a-z][a-z0-9_]*")
 
@@ -81,13 +85,12 @@ def open_undecoded_fill(path: str | os.PathLike[str]) -> "xr.Dataset":
     return dataset
 
 
-def verified(dataset: "xr.Dataset", path: str | os.PathLike[str]) -> "xr.Dataset":
-    """``dataset`` with the digests of its attribute checked, the attribute removed.
+def check_digests(dataset: Any, path: str | os.PathLike[str]) -> None:
+    """Check the variables named in the digest attribute against their SHA-256.
 
-    The variables named in :data:`~ncstab.studies.checksums.DIGEST_ATTRIBUTE`
-    are read and their SHA-256 compared; the others are checked by HDF5
-    (Fletcher-32).  An archive written before checksums has no such
-    attribute and is accepted as it is.
+    ``dataset`` is an ``xarray.Dataset`` or anything with the same ``attrs``
+    and ``variables[name].values`` (:class:`~ncstab.studies.quick_read.ArchiveContents`).
+    An archive written before checksums has no such attribute and passes.
 
     Raises
     ------
@@ -97,7 +100,7 @@ def verified(dataset: "xr.Dataset", path: str | os.PathLike[str]) -> "xr.Dataset
     """
     text = dataset.attrs.get(DIGEST_ATTRIBUTE)
     if text is None:
-        return dataset
+        return
     try:
         digests = parse_digests(text)
     except ValueError as error:
@@ -111,9 +114,55 @@ def verified(dataset: "xr.Dataset", path: str | os.PathLike[str]) -> "xr.Dataset
             raise ArchiveError(path, f"variable {name!r} cannot be read (damaged data?): {error}") from None
         if found != expected:
             raise ArchiveError(path, f"variable {name!r} does not match its checksum: the file is damaged")
+
+
+def verified(dataset: "xr.Dataset", path: str | os.PathLike[str]) -> "xr.Dataset":
+    """``dataset`` with the digests of its attribute checked (:func:`check_digests`), the attribute removed.
+
+    The variables named in :data:`~ncstab.studies.checksums.DIGEST_ATTRIBUTE`
+    are read and their SHA-256 compared; the others are checked by HDF5
+    (Fletcher-32).
+
+    Raises
+    ------
+    ArchiveError
+        As :func:`check_digests`.
+    """
+    if dataset.attrs.get(DIGEST_ATTRIBUTE) is None:
+        return dataset
+    check_digests(dataset, path)
     dataset = dataset.copy(deep=False)
     dataset.attrs = {k: v for k, v in dataset.attrs.items() if k != DIGEST_ATTRIBUTE}
     return dataset
+
+
+def check_study_text(study: str, path: str | os.PathLike[str]) -> None:
+    """Check that an archive's ``study`` attribute is a valid study file.
+
+    Parsing a study needs the law catalogue and sympy (a second): a text found
+    valid is remembered in the cache directory (:mod:`ncstab.cache`, keyed by
+    the SHA-256 of the text and the ncstab version), so the next archive of
+    the same study -- and the next ``ncstab info`` -- skips the parse.
+
+    Raises
+    ------
+    ArchiveError
+        The text is not a valid study file (the first error it has).
+    """
+    import ncstab
+    from ncstab.cache import read_entry, write_entry
+
+    key = hashlib.sha256(f"ncstab {ncstab.__version__}\n{study}".encode()).hexdigest()
+    if read_entry(VALID_STUDIES_KIND, key) == {"valid": True}:
+        return
+    from ncstab.studies.study import StudyFileError, parse_study
+
+    try:
+        parse_study(study, "<archive>")
+    except StudyFileError as error:
+        field, message = error.errors[0]
+        raise ArchiveError(path, f"its 'study' attribute is not a valid study file ({field}: {message})") from None
+    write_entry(VALID_STUDIES_KIND, key, {"valid": True})
 
 
 def known_status(status: str) -> bool:
@@ -144,8 +193,6 @@ def check_archive(dataset: "xr.Dataset", path: str | os.PathLike[str]) -> None:
     ArchiveError
         Naming the first invariant that does not hold.
     """
-    from ncstab.studies.study import FIGURE_KINDS, StudyFileError, parse_study
-
     missing = [name for name in REQUIRED_VARIABLES if name not in dataset.variables]
     if missing or "law" not in dataset.coords:
         what = ", ".join(repr(name) for name in missing + ([] if "law" in dataset.coords else ["law"]))
@@ -159,12 +206,8 @@ def check_archive(dataset: "xr.Dataset", path: str | os.PathLike[str]) -> None:
     study = dataset.attrs.get("study")
     if not isinstance(study, str):
         raise ArchiveError(path, "no 'study' attribute (the study file it was run from)")
-    try:
-        if study:  # "": a path followed from Python (ncstab.follow), without a study file
-            parse_study(study, "<archive>")
-    except StudyFileError as error:
-        field, message = error.errors[0]
-        raise ArchiveError(path, f"its 'study' attribute is not a valid study file ({field}: {message})") from None
+    if study:  # "": a path followed from Python (ncstab.follow), without a study file
+        check_study_text(study, path)
     n_steps = np.asarray(dataset["n_steps"].values)
     steps = int(dataset.sizes.get("step", 0))
     if n_steps.dtype.kind not in "iu":
