@@ -166,3 +166,21 @@ def test_console_script_runs_a_study(tmp_path):
     assert done.returncode == 0, done.stderr
     assert output.exists() and "finished: 4" in done.stdout
     assert "\r" not in done.stderr  # no progress bar when not on a terminal
+
+
+def test_on_a_terminal_the_run_says_when_it_writes_the_archive(tmp_path, capsys, monkeypatch):
+    """No silent pause between the run's bar and the figures' bar: writing the archive
+    is announced before it starts, then timed; with --quiet (or off a terminal) not."""
+    import ncstab.cli as cli
+
+    study = tmp_path / "tiny.toml"
+    study.write_text(TINY_STUDY)
+    output = tmp_path / "tiny.nc"
+    monkeypatch.setattr(cli, "_wants_progress", lambda args: not args.quiet)
+    assert main(["run", str(study), "-o", str(output)]) == 0
+    lines = capsys.readouterr().err.splitlines()
+    writing = [line for line in lines if "writing" in line]
+    assert writing[0] == f"ncstab run: tiny: writing {output} ..."
+    assert writing[1].startswith(f"ncstab run: tiny: writing {output}: done in ") and writing[1].endswith(" s")
+    assert main(["run", str(study), "-o", str(output), "--quiet"]) == 0
+    assert "writing" not in capsys.readouterr().err

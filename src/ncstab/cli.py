@@ -6,6 +6,7 @@ import argparse
 import contextlib
 import logging
 import sys
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import NoReturn, Sequence
@@ -148,7 +149,7 @@ def _run_one(study, output: Path, args: argparse.Namespace) -> bool:
     from ncstab.studies.errors import InvalidInputError, RunError, RunInterrupted
     from ncstab.studies.outputs import claim_output
 
-    progress = sys.stderr.isatty() and not args.quiet
+    progress = _wants_progress(args)
     note = _note(study.name)
     # The lock covers the run, the archive, its parts and its figures.
     with claim_output(output, resume=args.resume, overwrite=args.overwrite, notify=note):
@@ -164,7 +165,9 @@ def _run_one(study, output: Path, args: argparse.Namespace) -> bool:
                 raise InvalidInputError(str(error)) from None
         else:
             try:
-                write_dataset(run_study(study, progress=progress), output)
+                dataset = run_study(study, progress=progress)
+                with _announced(f"{study.name}: writing {output}", progress):
+                    write_dataset(dataset, output)
             except (RunError, RunInterrupted) as error:
                 error.kept = error.kept or f"nothing was written to {output}"
                 raise
@@ -175,6 +178,23 @@ def _run_one(study, output: Path, args: argparse.Namespace) -> bool:
     for line in summary:
         print(line)
     return any(line.startswith("  FAILED") for line in summary)
+
+
+def _wants_progress(args: argparse.Namespace) -> bool:
+    """Progress bars and notices on a terminal, unless ``--quiet``."""
+    return sys.stderr.isatty() and not args.quiet
+
+
+@contextlib.contextmanager
+def _announced(what: str, progress: bool) -> Iterator[None]:
+    """On a terminal, say what is being done before it starts and how long it took."""
+    if not progress:
+        yield
+        return
+    print(f"ncstab run: {what} ...", file=sys.stderr, flush=True)
+    start = time.perf_counter()
+    yield
+    print(f"ncstab run: {what}: done in {time.perf_counter() - start:.1f} s", file=sys.stderr, flush=True)
 
 
 def _draw(output: Path, progress: bool = False) -> tuple[list[Path], list[str]]:
