@@ -13,6 +13,7 @@ batch it is followed in (``ncstab.paths.integrator.combine_stages``).  Only the
 from __future__ import annotations
 
 import builtins
+import shutil
 import tempfile
 from pathlib import Path
 
@@ -219,16 +220,21 @@ def test_workers_and_scheduler_are_exclusive(tmp_path, capsys):
 
 def test_a_dask_run_writes_the_in_process_archive(study, reference, tmp_path, monkeypatch):
     pytest.importorskip("dask.distributed")
-    monkeypatch.setenv("TMPDIR", str(tmp_path / "tmp"))
-    (tmp_path / "tmp").mkdir()
-    monkeypatch.setattr(tempfile, "tempdir", None)  # TMPDIR is read again
-    output = tmp_path / "out" / "chunks.nc"
-    run_study_chunked(study, output, chunk_cases=CHUNK_CASES, workers=2)
-    assert_same_archive(output, reference)
-    # (pymp-*: the socket directory of multiprocessing's forkserver, which starts the
-    # workers and serves later runs; multiprocessing removes it when the process exits.)
-    left = [p for p in (tmp_path / "tmp").iterdir() if not p.name.startswith("pymp-")]
-    assert left == [], "the workers' scratch space is removed"
+    # A short TMPDIR of its own (not under tmp_path): the forkserver's socket lives in it,
+    # and a Unix socket's path may not exceed 107 bytes (pytest-xdist's tmp_path is long).
+    scratch = Path(tempfile.mkdtemp(prefix="ncd-"))
+    try:
+        monkeypatch.setenv("TMPDIR", str(scratch))
+        monkeypatch.setattr(tempfile, "tempdir", None)  # TMPDIR is read again
+        output = tmp_path / "out" / "chunks.nc"
+        run_study_chunked(study, output, chunk_cases=CHUNK_CASES, workers=2)
+        assert_same_archive(output, reference)
+        # (pymp-*: the socket directory of multiprocessing's forkserver, which starts the
+        # workers and serves later runs; multiprocessing removes it when the process exits.)
+        left = [p for p in scratch.iterdir() if not p.name.startswith("pymp-")]
+        assert left == [], "the workers' scratch space is removed"
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
 
 
 def test_a_run_on_an_existing_scheduler_writes_the_in_process_archive(study, reference, tmp_path):

@@ -20,8 +20,9 @@ than the whole summary of a 16,384-case archive) and checks the archive as
 
 The values are those ``open_study`` gives for these variables (strings as
 numpy unicode, floats with NaN where missing); an archive whose small
-variables use encodings that this reader does not decode (scale factors, a
-``_FillValue`` other than NaN, booleans) is read through xarray instead (:func:`needs_xarray`).
+variables use encodings that this reader does not decode (scale factors,
+booleans) is read through xarray instead (:func:`needs_xarray`); a
+``_FillValue`` is left undecoded, as ``open_study`` leaves it.
 """
 
 from __future__ import annotations
@@ -117,17 +118,13 @@ def _attribute(value: Any) -> Any:
 
 def needs_xarray(dataset: Any) -> bool:
     """Whether a small variable of ``dataset`` (a ``netCDF4.Dataset``) has an encoding that only
-    xarray decodes: a scale factor or offset, a calendar, a ``_FillValue`` other than NaN, a
-    ``dtype`` attribute (booleans)."""
+    xarray decodes: a scale factor or offset, a calendar, a ``dtype`` attribute (booleans)."""
     for variable in dataset.variables.values():
         attributes = set(variable.ncattrs())
         if attributes & set(_UNDECODED):
             return True
-        kind = np.dtype(variable.dtype).kind if not isinstance(variable.dtype, type) else "O"
-        if "_FillValue" in attributes and kind in "biuf":
-            fill = variable.getncattr("_FillValue")
-            if kind != "f" or not np.all(np.isnan(fill)):  # xarray's NaN fill reads as it is
-                return True
+        # A _FillValue is not decoded by open_study either (integer variables stay integers,
+        # ncstab.studies.verification.open_undecoded_fill): the raw values are the Dataset's.
         if "dtype" in attributes:  # booleans, enums: stored as integers, decoded by xarray
             return True
     return False
