@@ -32,7 +32,6 @@ import os
 import zlib
 from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -211,15 +210,9 @@ def open_archive_contents(path: str | os.PathLike[str]) -> Iterator[ArchiveConte
     """
     import netCDF4
 
-    from ncstab.studies.verification import check_archive, check_digests
+    from ncstab.studies.verification import check_archive, check_digests, existing_file
 
-    path = Path(path)
-    if not path.exists():
-        raise ArchiveError(path, "no such file")
-    if path.is_dir():
-        raise ArchiveError(path, "it is a directory")
-    if path.stat().st_size == 0:
-        raise ArchiveError(path, "the file is empty")
+    path = existing_file(path)
     try:
         dataset = netCDF4.Dataset(path, "r")
     except Exception as error:  # OSError, RuntimeError...: as opened() says it

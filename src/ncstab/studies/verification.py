@@ -27,7 +27,7 @@ from ncstab.studies.figure_kinds import FIGURE_KINDS
 if TYPE_CHECKING:  # pragma: no cover
     import xarray as xr
 
-__all__ = ["REQUIRED_VARIABLES", "check_archive", "check_digests", "check_study_text", "known_status", "opened", "verified"]
+__all__ = ["REQUIRED_VARIABLES", "check_archive", "check_digests", "check_study_text", "existing_file", "known_status", "opened", "verified"]
 
 #: Variables every archive has (with the coordinate ``law``).
 REQUIRED_VARIABLES = ("status", "message", "n_steps")
@@ -35,6 +35,24 @@ REQUIRED_VARIABLES = ("status", "message", "n_steps")
 VALID_STUDIES_KIND = "valid_studies"
 #: A failure reason or an event name: lower-case words joined by '_'.
 _WORD = re.compile(r"[a-z][a-z0-9_]*")
+
+
+def existing_file(path: str | os.PathLike[str]) -> FilePath:
+    """``path`` as a Path, once it is known to be a non-empty file.
+
+    Raises
+    ------
+    ArchiveError
+        No such file, a directory, or an empty file.
+    """
+    path = FilePath(path)
+    if not path.exists():
+        raise ArchiveError(path, "no such file")
+    if path.is_dir():
+        raise ArchiveError(path, "it is a directory")
+    if path.stat().st_size == 0:
+        raise ArchiveError(path, "the file is empty")
+    return path
 
 
 @contextlib.contextmanager
@@ -47,13 +65,7 @@ def opened(path: str | os.PathLike[str]) -> Iterator["xr.Dataset"]:
         No such file, a directory, or a file netCDF cannot open (empty,
         truncated, not NetCDF/HDF5).
     """
-    path = FilePath(path)
-    if not path.exists():
-        raise ArchiveError(path, "no such file")
-    if path.is_dir():
-        raise ArchiveError(path, "it is a directory")
-    if path.stat().st_size == 0:
-        raise ArchiveError(path, "the file is empty")
+    path = existing_file(path)
     try:
         dataset = open_undecoded_fill(path)
     except Exception as error:  # netCDF's errors are OSError, RuntimeError, ValueError...
