@@ -39,6 +39,17 @@ VOLATILE = ("created",)
 KNOWN_DIFFERENCES = {
     "stability_diagram_reduced": [{"law": "turco", "gamma": 2.0, "F2_lateral": 0.0}],
 }
+#: Studies the default engine runs on the compiled stepper (smooth linear stages of
+#: the deformable reduced diamond, secondary contacts ignored); the others keep the
+#: numpy stepper, the archive saying why (no_tension, the rigid normal, cycles).
+#: The compiled stepper does not orient the tangent by continuity, so on the known
+#: difference above it takes the golden's thirty small steps, and the end states
+#: agree as they do for the numpy stepper.
+COMPILED = {
+    "fig03_05_mcnamara_gamma2", "fig06_hyper_vs_hypo_gamma2", "fig07_hyper_vs_hypo_gamma05",
+    "fig08_mcnamara_gamma_family", "fig09_11_lateral_load", "fig12_13_rotational_vs_translational",
+    "stability_diagram_reduced",
+}
 #: The end states of a known difference agree to rounding (both paths are projected
 #: onto equilibrium to newton_tol = 1e-12).
 END_STATE_TOL = 1e-12
@@ -54,8 +65,10 @@ def _documented_changes(golden: xr.Dataset, computed: xr.Dataset) -> xr.Dataset:
     * the attribute ``system_settings`` states the system's structural
       settings (``reduction=symmetric``), and ``stage_drives`` what each
       loading stage drives (the figures' axes);
-    * the attribute ``engine`` says which stepper ran each law (issue 14):
-      the numpy stepper, for every law of these studies.
+    * the attribute ``engine`` says which stepper ran each law (issue 14).
+      The goldens were made by the numpy stepper; since the compiled stepper
+      is the default where it applies (:data:`COMPILED`), these studies run
+      on it and still give the goldens bit for bit.
 
     and, in the variables (issue 16, dynamic stability):
 
@@ -84,7 +97,13 @@ def _documented_changes(golden: xr.Dataset, computed: xr.Dataset) -> xr.Dataset:
     changed.attrs["system_settings"] = computed.attrs["system_settings"]
     changed.attrs["stage_drives"] = computed.attrs["stage_drives"]
     laws = [str(law) for law in computed["law"].values]
-    assert computed.attrs["engine"] == "; ".join(f"{law}: numpy stepper" for law in laws)
+    engines = dict(part.split(": ", 1) for part in computed.attrs["engine"].split("; "))
+    assert list(engines) == laws
+    for law, engine in engines.items():
+        if computed.attrs["study_name"] in COMPILED:
+            assert engine.startswith("compiled stepper (numba "), (law, engine)
+        else:
+            assert engine.startswith("numpy stepper (the compiled stepper does not cover this: "), (law, engine)
     changed.attrs["engine"] = computed.attrs["engine"]
     for name in computed.data_vars:
         if name.startswith(("bifurcation_", "divergence_")) or name == "flutter_onset_frequency":

@@ -98,6 +98,13 @@ def _check_run_options(args: argparse.Namespace) -> None:
                         ("--max-cases", args.max_cases)):
         if value is not None and value < 1:
             raise InvalidInputError(f"{flag} must be at least 1, got {value}")
+    if args.threads is not None:
+        from ncstab.paths.threads import check_thread_count
+
+        try:
+            check_thread_count(args.threads)
+        except ValueError as error:
+            raise InvalidInputError(str(error)) from None
     if not args.scheduler_timeout > 0:
         raise InvalidInputError(f"--scheduler-timeout must be a positive number of seconds, got {args.scheduler_timeout}")
     if args.scheduler is not None:
@@ -231,11 +238,14 @@ def command_run(args: argparse.Namespace) -> int:
         except NcstabError as error:
             error.study = study.name  # type: ignore[attr-defined]
             raise
+    from ncstab.paths.threads import using_threads
+
     any_failed = False
     written: list[Path] = []
     for study, output in zip(studies, outputs):
         try:
-            any_failed |= _run_one(study, output, args)
+            with using_threads(args.threads):
+                any_failed |= _run_one(study, output, args)
         except (NcstabError, RunInterrupted) as error:
             error.study = study.name  # type: ignore[attr-defined]
             if written and isinstance(error, (RunError, RunInterrupted)):
@@ -363,6 +373,9 @@ def build_parser() -> argparse.ArgumentParser:
     where.add_argument("--scheduler", metavar="ADDRESS",
                        help="run the chunks on an existing dask.distributed cluster "
                             "(e.g. tcp://host:8786; needs ncstab[distributed])")
+    run.add_argument("--threads", type=int, metavar="N",
+                     help="threads of this process's compiled stepper (default: every core, or "
+                          "NUMBA_NUM_THREADS); results are the same for any N")
     run.add_argument("--scheduler-timeout", type=float, default=30.0, metavar="SECONDS",
                      help="seconds to wait for the scheduler to answer (default 30)")
     run.set_defaults(handler=command_run)

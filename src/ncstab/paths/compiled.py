@@ -38,6 +38,7 @@ import re
 import sys
 import tempfile
 import textwrap
+import threading
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -139,9 +140,12 @@ def unsupported_reason(batch: Any, programme: Any, secondary_contacts: str) -> s
         The system's secondary-contact mode.
     """
     from ncstab.paths.model import CaseBatch
+    from ncstab.paths.rigid_model import RigidCaseBatch
 
-    if type(batch) is not CaseBatch:
+    if isinstance(batch, RigidCaseBatch):
         return "the pure-shear limit (normal = 'rigid') runs on the numpy stepper"
+    if type(batch) is not CaseBatch:
+        return "general models (any system but the seed's reduced diamond) run on the numpy stepper"
     if batch.law.definition.no_tension:
         return "no_tension laws (a kink at contact opening) run on the numpy stepper"
     if secondary_contacts == "activate" or batch.activate_secondary:
@@ -237,6 +241,10 @@ def _write_module(directory: Path, name: str, source: str) -> Path:
     return path
 
 
+#: Held while a generated module is written and executed.
+_LOADING = threading.Lock()
+
+
 def _load_module(source: str) -> Any:
     """Import the generated module ``source`` from the cache directory.
 
@@ -252,17 +260,24 @@ def _load_module(source: str) -> Any:
     own = Path(__file__).read_text(encoding="utf-8")
     digest = hashlib.sha256((source + stamp + own).encode()).hexdigest()[:20]
     name = f"ncstab_stage_loop_{digest}"
-    if name in sys.modules:
-        return sys.modules[name]
-    try:
-        path = _write_module(_cache_directory(), name, source)
-    except OSError:  # a read-only home, say
-        path = _write_module(Path(tempfile.mkdtemp(prefix="ncstab-compiled-")), name, source)
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
+    # One thread at a time (the threads of a dask worker run chunks side by side):
+    # another thread must not find the module half executed.
+    with _LOADING:
+        if name in sys.modules:
+            return sys.modules[name]
+        try:
+            path = _write_module(_cache_directory(), name, source)
+        except OSError:  # a read-only home, say
+            path = _write_module(Path(tempfile.mkdtemp(prefix="ncstab-compiled-")), name, source)
+        spec = importlib.util.spec_from_file_location(name, path)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module
+        try:
+            spec.loader.exec_module(module)
+        except BaseException:
+            del sys.modules[name]
+            raise
+        return module
 
 
 def stage_runner(batch: Any) -> StageLoop:
@@ -722,17 +737,19 @@ def _build_runner(law: Callable[..., tuple], rate_form: bool, uses_alpha: bool) 
         rhs_hot(y1, fc0, fc1, g0, g1, orientation, p, cos0, sin0, stages[_STAGES], ev, aux)
         return error_norm(y0, y1, h, rtol, atol, stages, work)
 
-    @numba.njit(cache=False, error_model="numpy")
-    def run(cases, y, derivative, indicator_table, step_size, arclength, accepted, rejected, located,
-            force_controlled, offset, slope, lam_end, target_sign, orientation, secondary_state,
-            parameters, cos0, sin0, stop_row, event_columns, event_found, event_values, event_stage,
-            stage_number, recorded, record_count, code, detail, rtol, atol, newton_tol,
-            newton_max_iter, min_step, max_step, max_steps, event_tol):
-        """Run cases ``cases`` through their current (linear) stage; see :class:`Outcome`.
+    @njit
+    def run_cases(cases, y, derivative, indicator_table, step_size, arclength, accepted, rejected, located,
+                  force_controlled, offset, slope, lam_end, target_sign, orientation, secondary_state,
+                  parameters, cos0, sin0, stop_row, event_columns, event_found, event_values, event_stage,
+                  stage_number, recorded, record_count, code, detail, rtol, atol, newton_tol,
+                  newton_max_iter, min_step, max_step, max_steps, event_tol):
+        """Run cases ``cases`` through their current (linear) stage, one after the other;
+        see :class:`Outcome`.
 
         Mirrors one case's passes of stepper.BatchStepper: a DOP853 step (projected),
         the step-size control, the domain check, crossings located, the cut, the
-        first events, the commit and the end of the stage.
+        first events, the commit and the end of the stage.  A case reads and
+        writes its own rows only, so cases may run on any thread in any order.
         """
         capacity = recorded[0].shape[1]
         stages = np.empty((_EXTENDED, M))
@@ -893,6 +910,25 @@ def _build_runner(law: Callable[..., tuple], rate_form: bool, uses_alpha: bool) 
                     code[i] = Outcome_TARGET
                     break
 
+    @numba.njit(cache=False, error_model="numpy", parallel=True)
+    def run(cases, y, derivative, indicator_table, step_size, arclength, accepted, rejected, located,
+            force_controlled, offset, slope, lam_end, target_sign, orientation, secondary_state,
+            parameters, cos0, sin0, stop_row, event_columns, event_found, event_values, event_stage,
+            stage_number, recorded, record_count, code, detail, rtol, atol, newton_tol,
+            newton_max_iter, min_step, max_step, max_steps, event_tol, threads):
+        """Run cases ``cases`` through their current (linear) stage on ``threads`` threads.
+
+        Thread ``t`` takes every ``threads``-th case from the ``t``-th (costly
+        cases of a sweep sit side by side, so strides share them out).  Each
+        case's arithmetic is the same whatever the thread count: the results
+        are bit for bit those of one thread.
+        """
+        for block in numba.prange(threads):
+            run_cases(cases[block::threads], y, derivative, indicator_table, step_size, arclength, accepted,
+                      rejected, located, force_controlled, offset, slope, lam_end, target_sign, orientation,
+                      secondary_state, parameters, cos0, sin0, stop_row, event_columns, event_found,
+                      event_values, event_stage, stage_number, recorded, record_count, code, detail, rtol,
+                      atol, newton_tol, newton_max_iter, min_step, max_step, max_steps, event_tol)
 
     @njit
     def initial_step_size(y0, f0, f1, probe, rtol, atol):

@@ -5,12 +5,16 @@
 :mod:`ncstab.paths.compiled` for the rest of its current stage, then does
 with the outcome what the numpy passes do: stores the steps, ends or fails
 the case, or enters its next stage (stage entry stays with the stepper).
+The cases of a stage run on numba's threads (``numba.get_num_threads()``:
+every core unless ``NUMBA_NUM_THREADS``, :func:`numba.set_num_threads` or
+``ncstab run --threads`` says fewer).
 """
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+import numba
 import numpy as np
 
 from ncstab.paths.compiled import EVENT_FIELDS, Outcome, StageLoop
@@ -99,7 +103,7 @@ class CompiledStages:
                     recorder.count, self.code, self.detail, stepper.options.rtol, stepper.options.atol,
                     stepper.options.newton_tol, stepper.options.newton_max_iter,
                     stepper.options.min_step, stepper.options.max_step, stepper.options.max_steps,
-                    stepper.options.event_tol,
+                    stepper.options.event_tol, max(1, min(numba.get_num_threads(), cases.size)),
                 )
                 self._end(stepper, cases)
         self._store_events(stepper, found, values, stage)

@@ -13,7 +13,7 @@ NORMAL_MODES = ("deformable", "rigid")
 #: PathOptions.initial_step estimated per case.
 AUTO = "auto"
 #: Steppers of the path engine (PathOptions.backend).
-BACKENDS = ("numpy", "compiled")
+BACKENDS = ("auto", "numpy", "compiled")
 
 
 @dataclass(frozen=True)
@@ -45,11 +45,13 @@ class PathOptions:
     event_tol
         Width of the arclength bracket within which events are located.
     backend
-        ``"numpy"`` (default): every case advances in numpy passes over the
-        batch.  ``"compiled"``: the smooth linear stages of the deformable
-        diamond run as one compiled loop per case (numba, the ``compiled``
-        extra), taking the same steps to rounding; other programmes and
-        systems still run on numpy (:mod:`ncstab.paths.compiled`).
+        ``"auto"`` (default): the compiled stepper (numba, one compiled loop
+        per case on every core, :mod:`ncstab.paths.compiled`) where it covers
+        the programme and the system, the numpy stepper elsewhere; the
+        archive's ``engine`` attribute says which ran and why.
+        ``"compiled"``: the same, asked for explicitly (an error without
+        numba).  ``"numpy"``: every case advances in numpy passes over the
+        batch.  Both steppers take the same steps to rounding.
     """
 
     rtol: float = 1e-10
@@ -61,7 +63,7 @@ class PathOptions:
     max_step: float = 0.02
     max_steps: int = 20_000
     event_tol: float = 1e-10
-    backend: str = "numpy"
+    backend: str = "auto"
 
     def __post_init__(self) -> None:
         for name in ("rtol", "atol", "newton_tol", "initial_step", "min_step", "max_step", "event_tol"):

@@ -583,15 +583,19 @@ def _compiled_stepper(
     Raises RuntimeError (from :func:`ncstab.paths.compiled.stage_runner`) when
     the compiled backend is asked for and numba is missing.
     """
-    if options.backend != "compiled":
+    if options.backend == "numpy":
         return None, NUMPY_ENGINE
     from ncstab.paths import compiled
 
+    asked = options.backend == "compiled"
     if not compiled.NUMBA_AVAILABLE:
-        compiled.stage_runner(batch)  # raises, naming the extra to install
+        if asked:
+            compiled.stage_runner(batch)  # raises, naming what to install
+        return None, f"{NUMPY_ENGINE} (numba is not installed)"
     reason = compiled.unsupported_reason(batch, programme, secondary_contacts)
     if reason is not None:
-        return None, f"{NUMPY_ENGINE} (backend = 'compiled' asked: {reason})"
+        because = "backend = 'compiled' asked" if asked else "the compiled stepper does not cover this"
+        return None, f"{NUMPY_ENGINE} ({because}: {reason})"
     from ncstab.paths.compiled_stages import CompiledStages
 
     engine = f"compiled stepper (numba {compiled.numba.__version__}), numpy stepper for what it leaves"

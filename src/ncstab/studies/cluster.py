@@ -165,6 +165,8 @@ def cluster_client(workers: int | None, scheduler: str | None, timeout: float = 
                     distributed.LocalCluster(
                         n_workers=int(workers),  # type: ignore[arg-type]
                         threads_per_worker=1,
+                        # the processes share the cores: one compiled-stepper thread each
+                        env={"NUMBA_NUM_THREADS": "1"},
                         processes=True,
                         dashboard_address=":0",  # a free port: never "port 8787 is in use"
                         local_directory=scratch,

@@ -1,0 +1,67 @@
+"""How many threads the compiled stepper runs a study's cases on.
+
+The compiled stepper (:mod:`ncstab.paths.compiled`) shares the cases of a
+stage out over numba's threads: every core by default, fewer where
+``NUMBA_NUM_THREADS`` (read once, when numba starts) or :func:`using_threads`
+(``ncstab run --threads N``) says so.  A case's arithmetic does not depend on
+the thread that runs it, so results are bit for bit the same whatever the
+count.  The workers of a local dask cluster run one thread each
+(:mod:`ncstab.studies.cluster`): there the processes share the cores.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+__all__ = ["check_thread_count", "thread_limit", "using_threads"]
+
+
+def thread_limit() -> int:
+    """The most threads numba can run: ``NUMBA_NUM_THREADS`` if set, else the number of cores."""
+    import numba
+
+    return int(numba.config.NUMBA_NUM_THREADS)
+
+
+def check_thread_count(count: int) -> int:
+    """``count`` if it is a thread count numba can run, else a ValueError saying why.
+
+    Parameters
+    ----------
+    count
+        Threads asked for (``--threads``).
+    """
+    if isinstance(count, bool) or not isinstance(count, int) or count < 1:
+        raise ValueError(f"--threads must be a positive whole number, got {count!r}")
+    limit = thread_limit()
+    if count > limit:
+        raise ValueError(
+            f"--threads {count} is more than the {limit} threads numba started with "
+            "(the number of cores, or NUMBA_NUM_THREADS if set)"
+        )
+    return count
+
+
+@contextmanager
+def using_threads(count: int | None) -> Iterator[None]:
+    """Within the block, the compiled stepper of this thread runs on ``count`` threads
+    (``None``: numba's current count, unchanged).
+
+    Raises
+    ------
+    ValueError
+        When ``count`` is not between 1 and :func:`thread_limit`.
+    """
+    if count is None:
+        yield
+        return
+    import numba
+
+    check_thread_count(count)
+    previous = numba.get_num_threads()
+    numba.set_num_threads(count)
+    try:
+        yield
+    finally:
+        numba.set_num_threads(previous)

@@ -1,0 +1,78 @@
+"""Threads of the compiled stepper: the cases of a stage share numba's threads.
+
+A case's arithmetic does not depend on the thread that runs it, so every
+archive must be bit for bit the same whatever the thread count (issue 14,
+"Must hold"); ``--threads`` is validated like every other option (exit 2,
+naming the option).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import xarray as xr
+
+pytest.importorskip("numba")
+
+from ncstab.cli import main
+from ncstab.paths import PathOptions, SystemSpec, follow
+from ncstab.paths.threads import check_thread_count, thread_limit, using_threads
+
+IGNORE = SystemSpec(secondary_contacts="ignore")
+PRELOAD = [
+    {"hold": {"F1": 0.0}, "drive": {"F2": "F2_lateral"}},
+    {"hold": {"F2": "current"}, "drive": {"D1": 0.6}, "stop_at": ["limit_point"]},
+]
+#: 96 cases with limit points, Hill losses and stops, unevenly costly, so that
+#: the strided share of the cases gives each thread a different mix.
+GRID = {"gamma": np.linspace(0.1, 2.0, 8), "alpha0": np.pi / 4, "F2_lateral": np.linspace(0.0, 0.6, 12)}
+
+
+def _dataset(threads: int) -> xr.Dataset:
+    with using_threads(threads):
+        path = follow(IGNORE, ["cundall_strack", "mcnamara"], PRELOAD, GRID, PathOptions())
+    dataset = path.to_dataset()
+    dataset.attrs.pop("created", None)
+    return dataset
+
+
+@pytest.mark.skipif(thread_limit() < 2, reason="numba runs one thread here (NUMBA_NUM_THREADS or one core)")
+def test_one_and_two_threads_give_the_same_archive_bit_for_bit():
+    one, two = _dataset(1), _dataset(2)
+    assert "compiled stepper" in one.attrs["engine"]
+    assert int((one["status"] != "finished").sum()) > 0  # stops at limit points are among them
+    xr.testing.assert_identical(one, two)
+
+
+def test_using_threads_restores_the_count():
+    import numba
+
+    before = numba.get_num_threads()
+    with using_threads(1):
+        assert numba.get_num_threads() == 1
+    assert numba.get_num_threads() == before
+    with using_threads(None):
+        assert numba.get_num_threads() == before
+
+
+@pytest.mark.parametrize("count", [0, -2, 1.5, True])
+def test_a_thread_count_that_is_not_a_positive_whole_number_is_refused(count):
+    with pytest.raises(ValueError, match="--threads must be a positive whole number"):
+        check_thread_count(count)
+
+
+def test_more_threads_than_numba_started_with_are_refused():
+    with pytest.raises(ValueError, match=rf"more than the {thread_limit()} threads numba started with"):
+        check_thread_count(thread_limit() + 1)
+
+
+@pytest.mark.parametrize("count", ["0", "100000"])
+def test_ncstab_run_with_a_bad_thread_count_exits_2_naming_the_option(tmp_path, capsys, count):
+    study = tmp_path / "s.toml"
+    study.write_text('[study]\nname = "s"\n[system]\nname = "diamond"\n[laws]\nnames = ["mcnamara"]\n'
+                     '[parameters]\ngamma = 1.0\nalpha0 = 0.785\n'
+                     '[[loading]]\nhold = { F2 = 0.0 }\ndrive = { D1 = 0.01 }\n')
+    assert main(["run", str(study), "-o", str(tmp_path / "s.nc"), "--threads", count]) == 2
+    err = capsys.readouterr().err
+    assert "--threads" in err and "Traceback" not in err
+    assert not (tmp_path / "s.nc").exists()
