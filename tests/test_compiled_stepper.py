@@ -40,6 +40,7 @@ from ncstab.systems.closed_forms import mcnamara_load_rotation
 ALPHA0 = math.pi / 4
 IGNORE = SystemSpec(secondary_contacts="ignore")
 STOP = SystemSpec(secondary_contacts="stop")
+ACTIVATE = SystemSpec(secondary_contacts="activate")
 LAWS = ("cundall_strack", "weakly_hypoelastic", "mcnamara", "turco")
 
 #: Backends compared.  Both take the same steps (same tableau, same
@@ -104,6 +105,15 @@ PROGRAMMES = {
     "preload_stop_limit": (IGNORE, PRELOAD_STOP, PRELOAD_GRID, PathOptions()),
     "contact_stop": (STOP, CONTACT, CONTACT_GRID, PathOptions()),
     "contact_ignore": (IGNORE, CONTACT, CONTACT_GRID, PathOptions()),
+    # The secondary springs switch on where a gap closes (a located switch that
+    # cuts the step, may flip the orientation, and goes on on the other branch).
+    "contact_activate": (ACTIVATE, CONTACT, {**CONTACT_GRID, "kappa": [1.0, 3.0]}, PathOptions()),
+    "preload_activate": (
+        ACTIVATE, PRELOAD, {"gamma": [0.1, 1.0, 2.0], "alpha0": [0.6, 0.8, 1.0], "F2_lateral": [0.0, 0.6]},
+        # A McNamara case chatters at a contact (it opens and closes at every step):
+        # bounded here, it fails with max_steps on both steppers.
+        PathOptions(max_steps=400),
+    ),
     # n_steps of the uniaxial cases is 17..48: some fail, some finish.
     "max_steps": (IGNORE, UNIAXIAL, UNIAXIAL_GRID, PathOptions(max_steps=25)),
     # Delta_1 = 1.2 > cos(alpha0): the top grain would pass the chain's centre,
@@ -344,6 +354,12 @@ def _check_reference(name: str, law: str, path) -> None:
         assert found["secondary_contact"] == status.size, found
         expected = "stopped:secondary_contact" if name == "contact_stop" else "finished"
         assert np.all(status == expected), status
+    if name == "contact_activate":
+        assert found["secondary_contact"] == status.size, found
+        assert np.all(status == "finished"), status
+    if name == "preload_activate":
+        assert found["secondary_contact"] >= 4, found
+        assert (status == "finished").sum() >= status.size // 2, status  # alpha0 = 1 leaves the domain
     if name == "max_steps":
         assert 0 < (status == "failed:max_steps").sum() < status.size, status
         assert (status == "finished").sum() > 0, status
@@ -392,14 +408,6 @@ FALLBACKS = {
         {"gamma": [0.5, 2.0], "alpha0": ALPHA0},
         PathOptions(),
         "no_tension",
-    ),
-    "activate": (
-        SystemSpec(secondary_contacts="activate"),
-        "mcnamara",
-        [{"hold": {"F2": 0.0}, "drive": {"D1": 0.3}}],
-        {"gamma": 0.5, "alpha0": ALPHA0, "kappa": [1.0, 3.0]},
-        PathOptions(),
-        "activate",
     ),
     "rigid": (
         SystemSpec(normal="rigid", secondary_contacts="ignore"),

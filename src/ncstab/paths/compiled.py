@@ -148,8 +148,6 @@ def unsupported_reason(batch: Any, programme: Any, secondary_contacts: str) -> s
         return "general models (any system but the seed's reduced diamond) run on the numpy stepper"
     if batch.law.definition.no_tension:
         return "no_tension laws (a kink at contact opening) run on the numpy stepper"
-    if secondary_contacts == "activate" or batch.activate_secondary:
-        return "secondary_contacts = 'activate' (switching springs) runs on the numpy stepper"
     if any(isinstance(stage, CycleStage) for stage in programme.stages):
         return "cycle stages run on the numpy stepper"
     kernels = batch._kernels
@@ -208,6 +206,7 @@ from ncstab.paths.events import CYCLE_COLUMN, INDICATOR_GAP, SIGN_NOISE, TARGET_
 
 rate_form = {rate_form!r}
 uses_alpha = {uses_alpha!r}
+n_parameters = {n_parameters!r}
 
 
 @numba.njit(inline="always", cache=True)
@@ -297,14 +296,14 @@ def stage_runner(batch: Any) -> StageLoop:
     return _runner(kernel, len(batch.law.definition.parameter_names), not batch.law.has_total_form)
 
 
-def _build_runner(law: Callable[..., tuple], rate_form: bool, uses_alpha: bool) -> StageLoop:
+def _build_runner(law: Callable[..., tuple], rate_form: bool, uses_alpha: bool, n_parameters: int) -> StageLoop:
     """The stage loop around one law's state kernel (a template: see below).
 
     Every helper mirrors a numpy function of the engine, operation for
     operation (cited in its comment), so that both backends take the same
     steps.  The loop is built from this function's *text*: its body, after
     this docstring, becomes the body of a generated module whose globals
-    ``law``, ``rate_form`` and ``uses_alpha`` are this function's parameters
+    ``law``, ``rate_form``, ``uses_alpha`` and ``n_parameters`` are this function's parameters
     (:func:`_module_source`), so that numba can cache it on disk.  It is not
     called.
     """
@@ -329,6 +328,10 @@ def _build_runner(law: Callable[..., tuple], rate_form: bool, uses_alpha: bool) 
     N_INT = 1 if rate_form else 0  # internal variables: T for a rate form (one contact family)
     M = 4 + N_INT  # y = (v0, v1, lambda, [T], W)
     cut_always = np.array([c in (TARGET_COLUMN, CYCLE_COLUMN) or BREAK_ALWAYS[c] for c in range(_N_COLUMNS)])
+    switch_bits = np.array(INDICATOR_GAP, dtype=np.int64)
+    # The case's row p: the law's parameters, then kappa, whether the secondary
+    # springs act (1.0) or not (0.0), and the contact-state bits (a float).
+    kappa_slot, activate_slot, state_slot = n_parameters, n_parameters + 1, n_parameters + 2
     Outcome_PAUSED, Outcome_TARGET, Outcome_STOPPED = Outcome.PAUSED, Outcome.TARGET, Outcome.STOPPED
     Outcome_STEP_SIZE_UNDERFLOW, Outcome_LEFT_DOMAIN = Outcome.STEP_SIZE_UNDERFLOW, Outcome.LEFT_DOMAIN
     Outcome_MAX_STEPS = Outcome.MAX_STEPS
@@ -354,6 +357,13 @@ def _build_runner(law: Callable[..., tuple], rate_form: bool, uses_alpha: bool) 
             ev[11] = np.nan
         ev[12] = gap(vertical)
         ev[13] = gap(horizontal)
+        if p[activate_slot] > 0:
+            # model.CaseBatch._evaluate_fused: the secondary-contact springs whose bit is set
+            kappa, state = p[kappa_slot], int(p[state_slot])
+            ev[4] += kappa * ((1.0 - 2.0 * vertical) if (state & 1) > 0 else 0.0)
+            ev[6] += 2.0 * kappa * (1.0 if (state & 1) > 0 else 0.0)
+            ev[5] += kappa * ((1.0 - 2.0 * horizontal) if (state & 2) > 0 else 0.0)
+            ev[9] += 2.0 * kappa * (1.0 if (state & 2) > 0 else 0.0)
 
     @hot
     def gap(extent):
@@ -416,6 +426,25 @@ def _build_runner(law: Callable[..., tuple], rate_form: bool, uses_alpha: bool) 
     # inlining it everywhere costs seconds of compilation for no measurable gain.
     rhs_hot = hot(rhs_py)
     rhs = njit(rhs_py)
+
+    @hot
+    def motion(ev, aux, out):
+        # contacts.switch_contacts.motion: (du, dF = K dv, dlambda) of the tangent in aux
+        out[0] = aux[2]
+        out[1] = aux[3]
+        out[2] = ev[6] * aux[0] + ev[7] * aux[1]
+        out[3] = ev[8] * aux[0] + ev[9] * aux[1]
+        out[4] = aux[4]
+
+    @hot
+    def motion_product(before, ev, aux):
+        # the sum over (du, dF, dlambda) of motion(after) * motion(before), in order
+        total = aux[2] * before[0]
+        total += aux[3] * before[1]
+        total += (ev[6] * aux[0] + ev[7] * aux[1]) * before[2]
+        total += (ev[8] * aux[0] + ev[9] * aux[1]) * before[3]
+        total += aux[4] * before[4]
+        return total
 
     @hot
     def significant(value, size):
@@ -740,7 +769,7 @@ def _build_runner(law: Callable[..., tuple], rate_form: bool, uses_alpha: bool) 
     @njit
     def run_cases(cases, y, derivative, indicator_table, step_size, arclength, accepted, rejected, located,
                   force_controlled, offset, slope, lam_end, target_sign, orientation, secondary_state,
-                  parameters, cos0, sin0, stop_row, event_columns, event_found, event_values, event_stage,
+                  parameters, cos0, sin0, stop_row, break_row, event_columns, event_found, event_values, event_stage,
                   stage_number, recorded, record_count, code, detail, rtol, atol, newton_tol,
                   newton_max_iter, min_step, max_step, max_steps, event_tol):
         """Run cases ``cases`` through their current (linear) stage, one after the other;
@@ -771,10 +800,13 @@ def _build_runner(law: Callable[..., tuple], rate_form: bool, uses_alpha: bool) 
         lower = np.empty(n_columns)
         upper = np.empty(n_columns)
         change = np.zeros(n_columns, dtype=np.bool_)
+        motion_before = np.empty(5)
         for i in cases:
             fc0, fc1 = force_controlled[i, 0], force_controlled[i, 1]
             g0, g1 = slope[i, 0], slope[i, 1]
             p = parameters[i]
+            sec = secondary_state[i]
+            p[state_slot] = sec
             c0, s0 = cos0[i], sin0[i]
             orient = orientation[i]
             code[i] = Outcome_PAUSED
@@ -821,7 +853,7 @@ def _build_runner(law: Callable[..., tuple], rate_form: bool, uses_alpha: bool) 
                     break
                 # --- _complete: indicators, crossings located, cut, events, commit
                 indicators(ev_new, aux_new, y_new[2], fc0, fc1, lam_end[i], target_sign[i],
-                           secondary_state[i], after)
+                           sec, after)
                 any_change = False
                 for c in range(n_columns):
                     before[c] = indicator_table[i, c]
@@ -845,7 +877,7 @@ def _build_runner(law: Callable[..., tuple], rate_form: bool, uses_alpha: bool) 
                             continue
                         sigma[c], lower[c], upper[c] = locate(
                             c, h, before[c], after[c], y0, coefficients, fc0, fc1, offset[i], slope[i],
-                            lam_end[i], target_sign[i], orient, secondary_state[i], p, c0, s0,
+                            lam_end[i], target_sign[i], orient, sec, p, c0, s0,
                             newton_tol, newton_max_iter, event_tol, ev, aux, values, located_states[c],
                         )
                         located[i] += 1
@@ -857,7 +889,7 @@ def _build_runner(law: Callable[..., tuple], rate_form: bool, uses_alpha: bool) 
                 cut_column = 0
                 cut_sigma = np.inf
                 for c in range(n_columns):
-                    cutting = change[c] and (stop_row[c] or cut_always[c])
+                    cutting = change[c] and (stop_row[c] or cut_always[c] or break_row[c])
                     if cutting and sigma[c] < cut_sigma:
                         cut_sigma = sigma[c]
                         cut_column = c
@@ -882,9 +914,24 @@ def _build_runner(law: Callable[..., tuple], rate_form: bool, uses_alpha: bool) 
                 if is_cut:  # _move_to_cut_points
                     for j in range(M):
                         y_new[j] = located_states[cut_column, j]
+                    switching = break_row[cut_column]
+                    kept = 0.0
+                    if switching:  # _switch_contacts_at: the direction of motion is kept
+                        rhs(y_new, fc0, fc1, g0, g1, orient, p, c0, s0, work[2], ev, aux)
+                        motion(ev, aux, motion_before)
+                        sec = sec ^ switch_bits[cut_column]
+                        p[state_slot] = sec
+                        secondary_state[i] = sec
+                        rhs(y_new, fc0, fc1, g0, g1, orient, p, c0, s0, work[2], ev, aux)
+                        if motion_product(motion_before, ev, aux) < 0:
+                            orient = -orient
+                            orientation[i] = orient
+                        kept = after[cut_column]
                     rhs(y_new, fc0, fc1, g0, g1, orient, p, c0, s0, dy_new, ev_new, aux_new)
                     indicators(ev_new, aux_new, y_new[2], fc0, fc1, lam_end[i], target_sign[i],
-                               secondary_state[i], after)
+                               sec, after)
+                    if switching:  # the post-crossing sign, so the crossing is not found twice
+                        after[cut_column] = kept
                 # _commit
                 for j in range(M):
                     y[i, j] = y_new[j]
@@ -913,7 +960,7 @@ def _build_runner(law: Callable[..., tuple], rate_form: bool, uses_alpha: bool) 
     @numba.njit(cache=False, error_model="numpy", parallel=True)
     def run(cases, y, derivative, indicator_table, step_size, arclength, accepted, rejected, located,
             force_controlled, offset, slope, lam_end, target_sign, orientation, secondary_state,
-            parameters, cos0, sin0, stop_row, event_columns, event_found, event_values, event_stage,
+            parameters, cos0, sin0, stop_row, break_row, event_columns, event_found, event_values, event_stage,
             stage_number, recorded, record_count, code, detail, rtol, atol, newton_tol,
             newton_max_iter, min_step, max_step, max_steps, event_tol, threads):
         """Run cases ``cases`` through their current (linear) stage on ``threads`` threads.
@@ -926,7 +973,7 @@ def _build_runner(law: Callable[..., tuple], rate_form: bool, uses_alpha: bool) 
         for block in numba.prange(threads):
             run_cases(cases[block::threads], y, derivative, indicator_table, step_size, arclength, accepted,
                       rejected, located, force_controlled, offset, slope, lam_end, target_sign, orientation,
-                      secondary_state, parameters, cos0, sin0, stop_row, event_columns, event_found,
+                      secondary_state, parameters, cos0, sin0, stop_row, break_row, event_columns, event_found,
                       event_values, event_stage, stage_number, recorded, record_count, code, detail, rtol,
                       atol, newton_tol, newton_max_iter, min_step, max_step, max_steps, event_tol)
 
@@ -965,6 +1012,7 @@ def _build_runner(law: Callable[..., tuple], rate_form: bool, uses_alpha: bool) 
             for j in range(M):
                 state[j] = y[i, j]
             fc0, fc1, g0, g1 = force_controlled[i, 0], force_controlled[i, 1], slope[i, 0], slope[i, 1]
+            parameters[i, state_slot] = secondary_state[i]
             rhs(state, fc0, fc1, g0, g1, orientation[i], parameters[i], cos0[i], sin0[i], derivative[i], ev, aux)
             indicators(ev, aux, state[2], fc0, fc1, lam_end[i], target_sign[i], secondary_state[i],
                        indicator_table[i])

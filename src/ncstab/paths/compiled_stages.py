@@ -47,8 +47,15 @@ class CompiledStages:
         size = batch.size
         self.runner = loop.run
         self.starter = loop.start
+        # Per case: the law's parameters, kappa, whether the secondary-contact springs act,
+        # and the contact-state bits (kept in step with the stepper's around each call).
         values = [np.broadcast_to(np.asarray(v, dtype=float), (size,)) for v in batch.law.parameter_values()]
-        self.parameters = np.ascontiguousarray(np.stack(values, axis=-1) if values else np.zeros((size, 0)))
+        values += [
+            np.broadcast_to(np.asarray(batch.kappa, dtype=float), (size,)),
+            np.full(size, 1.0 if batch.activate_secondary else 0.0),
+            np.zeros(size),
+        ]
+        self.parameters = np.ascontiguousarray(np.stack(values, axis=-1))
         cos0, sin0 = batch._alpha0_trig
         self.cos0 = np.ascontiguousarray(np.broadcast_to(cos0, (size,)), dtype=float)
         self.sin0 = np.ascontiguousarray(np.broadcast_to(sin0, (size,)), dtype=float)
@@ -65,7 +72,7 @@ class CompiledStages:
         self.starter(
             cases.astype(np.int64), stepper.y, stepper.derivative, stepper.indicators, stepper.arclength,
             stages.force_controlled, stages.slope, stages.lam_end, stages.target_sign, stages.orientation,
-            stages.secondary_state.astype(np.int64), self.parameters, self.cos0, self.sin0,
+            np.ascontiguousarray(stages.secondary_state, dtype=np.int64), self.parameters, self.cos0, self.sin0,
             stepper.stage_index[cases[0]] if cases.size else 0,
             tuple(recorder.arrays[name] for name in stepper.record_fields()), recorder.count,
             stepper.step_size, stepper.probe_step, stepper.options.rtol, stepper.options.atol,
@@ -93,18 +100,21 @@ class CompiledStages:
                 cases = active[stepper.stage_index[active] == k]
                 recorder = stepper.recorder
                 recorder.reserve(int(recorder.count[cases].max()) + STEPS_PER_CALL)
+                secondary_state = np.ascontiguousarray(stages.secondary_state, dtype=np.int64)
                 self.runner(
                     cases.astype(np.int64), stepper.y, stepper.derivative, stepper.indicators,
                     stepper.step_size, stepper.arclength, stepper.accepted, stepper.rejected, stepper.located,
                     stages.force_controlled, stages.offset, stages.slope, stages.lam_end,
-                    stages.target_sign, stages.orientation, stages.secondary_state.astype(np.int64),
-                    self.parameters, self.cos0, self.sin0, stepper.stop_table[k], event_columns,
+                    stages.target_sign, stages.orientation, secondary_state,
+                    self.parameters, self.cos0, self.sin0, stepper.stop_table[k], stepper.break_columns,
+                    event_columns,
                     found, values, stage, int(k), tuple(recorder.arrays[name] for name in fields),
                     recorder.count, self.code, self.detail, stepper.options.rtol, stepper.options.atol,
                     stepper.options.newton_tol, stepper.options.newton_max_iter,
                     stepper.options.min_step, stepper.options.max_step, stepper.options.max_steps,
                     stepper.options.event_tol, max(1, min(numba.get_num_threads(), cases.size)),
                 )
+                stages.secondary_state[cases] = secondary_state[cases]  # contacts switched in the loop
                 self._end(stepper, cases)
         self._store_events(stepper, found, values, stage)
 
