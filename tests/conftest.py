@@ -1,12 +1,12 @@
 """Shared fixtures.  Hypothesis strategies live in ``strategies.py``.
 
-Tests write nothing outside temporary directories: the compiled stepper's cache
-(``NCSTAB_CACHE_DIR``, by default ``~/.cache/ncstab/compiled``) and matplotlib's
-(``MPLCONFIGDIR``, by default ``~/.cache/matplotlib``) are in a temporary
-directory of the session, made by the controlling process and inherited by
-pytest-xdist's workers and by the subprocesses tests start: each law's loop is
-compiled once per session (not once per worker), and nothing is left in the
-user's home.  Figures, archives and doc examples write into ``tmp_path``.
+Tests write nothing outside temporary directories: ncstab's caches
+(``NCSTAB_CACHE_DIR``, by default ``~/.cache/ncstab``: the compiled stepper's
+loops, the law classes, :mod:`ncstab.cache`) and matplotlib's (``MPLCONFIGDIR``,
+by default ``~/.cache/matplotlib``) are in a temporary directory of the session,
+made by the controlling process and inherited by pytest-xdist's workers and by
+the subprocesses tests start, and nothing is left in the user's home.  Figures,
+archives and doc examples write into ``tmp_path``.
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ def diamond() -> DiamondChain:
 
 
 #: Caches that would otherwise go to the user's home: variable -> subdirectory of the session's.
-SESSION_CACHES = {"NCSTAB_CACHE_DIR": "ncstab-compiled", "MPLCONFIGDIR": "matplotlib"}
+SESSION_CACHES = {"NCSTAB_CACHE_DIR": "ncstab", "MPLCONFIGDIR": "matplotlib"}
 _SAVED = pytest.StashKey[dict[str, str | None]]()
 _MADE = pytest.StashKey[str]()
 
