@@ -232,3 +232,13 @@ def test_a_read_only_folder_gives_exit_code_3_and_names_what_stayed(root, capsys
     assert "Traceback" not in err and "freed" not in out
     assert len(list(stuck.iterdir())) == 2
 
+
+def test_the_warm_up_of_the_test_session_knows_every_test_file_that_compiles():
+    """tests/conftest.py warms the compiled loops when a selected file asks for the compiled
+    backend: a new such file is one whose laws WARM_LAWS must cover."""
+    from conftest import COMPILED_BACKEND
+
+    here = Path(__file__).parent
+    asking = {path.name for path in here.glob("test_*.py")
+              if COMPILED_BACKEND.search(path.read_text(encoding="utf-8"))}
+    assert asking == {"test_compiled_stepper.py", "test_chunked.py", "test_initial_step.py"}
