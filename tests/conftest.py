@@ -1,24 +1,41 @@
 """Shared fixtures.  Hypothesis strategies live in ``strategies.py``.
 
-Tests write nothing outside temporary directories: the compiled stepper's cache
-(``NCSTAB_CACHE_DIR``, by default ``~/.cache/ncstab/compiled``) and matplotlib's
-(``MPLCONFIGDIR``, by default ``~/.cache/matplotlib``) are in a temporary
-directory of the session, made by the controlling process and inherited by
-pytest-xdist's workers and by the subprocesses tests start: each law's loop is
-compiled once per session (not once per worker), and nothing is left in the
-user's home.  Figures, archives and doc examples write into ``tmp_path``.
+Tests write nothing outside temporary directories: ncstab's caches
+(``NCSTAB_CACHE_DIR``, by default ``~/.cache/ncstab``: the compiled stepper's
+loops, the law classes, :mod:`ncstab.cache`) and matplotlib's (``MPLCONFIGDIR``,
+by default ``~/.cache/matplotlib``) are in a temporary directory of the session,
+made by the controlling process and inherited by pytest-xdist's workers and by
+the subprocesses tests start, and nothing is left in the user's home.  Figures,
+archives and doc examples write into ``tmp_path``.
+
+Before the tests start (and before pytest-xdist starts its workers), the
+controlling process compiles the numba loops of the catalogue laws the tests
+follow (:data:`WARM_LAWS`; the compiled stepper is the default engine) into
+the session's cache, in parallel processes, so that no worker compiles them
+again: each loop is compiled once per session, not once per worker.  It does
+so when the tests run on two pytest-xdist workers or more (a single process
+compiles each loop once anyway, on first use); ``NCSTAB_TEST_WARM=0`` skips it
+(the tests then compile the loops they need themselves).  The report header
+says what was done; a warm-up that fails is reported there, and the tests run
+anyway.
 """
 
 from __future__ import annotations
 
 import os
 import shutil
+import subprocess
+import sys
 import tempfile
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 
 import numpy as np
 import pytest
 from hypothesis import settings
 
+import ncstab
 from ncstab.systems import DiamondChain
 
 # Defaults for every property test; each test still states its own
@@ -41,9 +58,10 @@ def diamond() -> DiamondChain:
 
 
 #: Caches that would otherwise go to the user's home: variable -> subdirectory of the session's.
-SESSION_CACHES = {"NCSTAB_CACHE_DIR": "ncstab-compiled", "MPLCONFIGDIR": "matplotlib"}
+SESSION_CACHES = {"NCSTAB_CACHE_DIR": "ncstab", "MPLCONFIGDIR": "matplotlib"}
 _SAVED = pytest.StashKey[dict[str, str | None]]()
 _MADE = pytest.StashKey[str]()
+_WARMED = pytest.StashKey[str]()
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -74,7 +92,99 @@ def pytest_unconfigure(config: pytest.Config) -> None:
             os.environ[name] = saved
 
 
-def pytest_report_header(config: pytest.Config) -> str:
-    """Say once where this session's caches go."""
+# --- compiling the compiled stepper's loops once per session -----------------------------------
+
+#: The catalogue laws the tests follow on the reduced diamond (the compiled
+#: stepper is the default there); laws the compiled stepper does not cover
+#: (``no_tension``) need no loop.
+WARM_LAWS = ("cundall_strack", "weakly_hypoelastic", "mcnamara", "turco")
+#: Seconds a warm-up process may take (a law compiles in about 30 s on one core).
+WARM_TIMEOUT = 900
+#: Compiles the loop of each law named on the command line, through the public path.
+WARM_SCRIPT = """
+import sys
+from ncstab.paths import PathOptions, SystemSpec, follow
+
+for law in sys.argv[1:]:
+    programme = [{"hold": {"F2": 0.0}, "drive": {"D1": 0.01}}]
+    options = PathOptions(backend="compiled", max_step=1.0)
+    path = follow(SystemSpec(secondary_contacts="ignore"), law, programme, {"gamma": 1.0}, options)
+    engine = path.results[0].engine
+    if not engine.startswith("compiled stepper"):
+        sys.exit(f"{law} did not run on the compiled stepper: {engine}")
+"""
+
+
+def _distributed(config: pytest.Config) -> bool:
+    """Whether pytest-xdist runs the tests on two workers or more (each would compile the loops)."""
+    workers = getattr(config.option, "numprocesses", None)
+    if workers == "auto" or workers == "logical":
+        workers = os.cpu_count() or 1
+    return isinstance(workers, int) and workers > 1
+
+
+def warm_compiled_loops(laws: tuple[str, ...], processes: int) -> None:
+    """Compile the loops of ``laws`` into the cache of ``$NCSTAB_CACHE_DIR``, in ``processes``
+    Python processes at once (the same ncstab as this process's).
+
+    Raises
+    ------
+    RuntimeError
+        When a process fails, with the last line it printed.
+    """
+    source = str(Path(ncstab.__file__).resolve().parent.parent)
+    path = os.pathsep.join([source, *filter(None, [os.environ.get("PYTHONPATH")])])
+    environment = dict(os.environ, PYTHONPATH=path)
+    groups = [laws[k::processes] for k in range(processes)]
+
+    def compile_group(group: tuple[str, ...]) -> subprocess.CompletedProcess[str]:
+        return subprocess.run([sys.executable, "-c", WARM_SCRIPT, *group], capture_output=True, text=True,
+                              env=environment, timeout=WARM_TIMEOUT, check=False)
+
+    with ThreadPoolExecutor(processes) as pool:
+        for group, done in zip(groups, pool.map(compile_group, groups)):
+            if done.returncode != 0:
+                last = (done.stderr.strip().splitlines() or [f"exit code {done.returncode}"])[-1]
+                raise RuntimeError(f"{', '.join(group)}: {last}")
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_sessionstart(session: pytest.Session) -> None:
+    """Warm the compiled stepper's cache (:func:`warm_compiled_loops`) in the controlling
+    process, before pytest-xdist starts its workers (its ``pytest_sessionstart`` is
+    ``trylast``); say so in the report header."""
+    config = session.config
+    if os.environ.get("PYTEST_XDIST_WORKER") or _MADE not in config.stash or config.option.collectonly:
+        return
+    directory = Path(os.environ["NCSTAB_CACHE_DIR"]) / "compiled"
+    if os.environ.get("NCSTAB_TEST_WARM", "1") == "0":
+        config.stash[_WARMED] = "compiled loops not warmed (NCSTAB_TEST_WARM=0): the tests compile them"
+        return
+    if not _distributed(config):
+        return  # one process compiles each loop once, on first use, anyway
+    processes = max(1, min(len(WARM_LAWS), os.cpu_count() or 1))
+    reporter = config.pluginmanager.get_plugin("terminalreporter")
+    if reporter is not None:
+        reporter.write_line(f"warming the compiled loops of {len(WARM_LAWS)} laws in {processes} processes "
+                            "(NCSTAB_TEST_WARM=0 skips it) ...")
+    start = time.perf_counter()
+    try:
+        warm_compiled_loops(WARM_LAWS, processes)
+    except (OSError, RuntimeError, subprocess.SubprocessError) as error:  # the tests run anyway
+        line = (f"warming the compiled loops failed ({type(error).__name__}: {error}); "
+                "tests compile those they need")
+    else:
+        line = (f"warmed the compiled loops of {len(WARM_LAWS)} laws in {time.perf_counter() - start:.1f} s "
+                f"into {directory}")
+    config.stash[_WARMED] = line
+    if reporter is not None and (config.get_verbosity() < 0 or config.option.no_header):  # no header
+        reporter.write_line(line)
+
+
+def pytest_report_header(config: pytest.Config) -> list[str]:
+    """Say once where this session's caches go, and whether the compiled loops were warmed."""
     where = ", ".join(f"{name}={os.environ.get(name)}" for name in SESSION_CACHES)
-    return f"caches of this session (removed at the end): {where}"
+    lines = [f"caches of this session (removed at the end): {where}"]
+    if _WARMED in config.stash:
+        lines.append(config.stash[_WARMED])
+    return lines

@@ -622,11 +622,11 @@ def test_a_study_file_with_a_bad_backend_is_rejected_naming_the_field(value):
 
 def test_the_compiled_loop_is_generated_once_and_cached_on_disk():
     """The loop of a law is a module in the cache directory, with numba's cache beside it."""
-    from ncstab.paths import compiled
+    from ncstab.cache import cache_directory
 
     follow(SystemSpec(secondary_contacts="ignore"), "cundall_strack", [{"hold": {"F2": 0.0}, "drive": {"D1": 0.01}}],
            {"gamma": 1.0}, PathOptions(backend="compiled"))
-    directory = compiled._cache_directory()
+    directory = cache_directory("compiled")
     modules = sorted(directory.glob("ncstab_stage_loop_*.py"))
     assert modules, directory
     loaded = [sys.modules[m.stem] for m in modules if m.stem in sys.modules]

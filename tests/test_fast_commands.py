@@ -54,9 +54,17 @@ def _imported_after(argv: list[str], env: dict[str, str] | None = None) -> list[
 
 
 @pytest.mark.parametrize("argv", [["--version"], ["--help"], ["laws", "--help"], ["run", "--help"],
-                                  ["info", "--help"], ["plot", "--help"]], ids=" ".join)
+                                  ["info", "--help"], ["plot", "--help"], ["cache", "--help"]], ids=" ".join)
 def test_version_and_help_import_neither_sympy_nor_the_engine(argv):
     assert _imported_after(argv) == []
+
+
+def test_the_cache_command_imports_neither_sympy_nor_the_engine(tmp_path):
+    env = dict(os.environ, NCSTAB_CACHE_DIR=str(tmp_path / "cache"))
+    (tmp_path / "cache" / "law_classes").mkdir(parents=True)
+    assert _imported_after(["cache"], env) == []
+    assert _imported_after(["cache", "clear"], env) == []
+    assert not (tmp_path / "cache" / "law_classes").exists()
 
 
 def test_module_version_in_a_subprocess_prints_the_version():

@@ -389,6 +389,10 @@ def build_parser() -> argparse.ArgumentParser:
     info = sub.add_parser("info", help="summarise an archive: study, sweep, statuses, events", parents=[debug])
     info.add_argument("archive", metavar="OUT.nc")
     info.set_defaults(handler=command_info)
+
+    from ncstab.cache_command import add_cache_parser  # the standard library only
+
+    add_cache_parser(sub, [debug])
     return parser
 
 

@@ -54,6 +54,7 @@ except ImportError:  # pragma: no cover - exercised where numba is absent
     numba = None
     NUMBA_AVAILABLE = False
 
+from ncstab.cache import cache_directory
 from ncstab.paths.events import (
     CYCLE_COLUMN,
     INDICATOR_EVENTS,
@@ -220,13 +221,8 @@ def law(l, a, c, s, t, p):
     return header + body
 
 
-def _cache_directory() -> Path:
-    """Where generated loops and numba's cache go: ``$NCSTAB_CACHE_DIR``, else
-    ``$XDG_CACHE_HOME/ncstab/compiled`` (``~/.cache/ncstab/compiled``)."""
-    if os.environ.get("NCSTAB_CACHE_DIR"):
-        return Path(os.environ["NCSTAB_CACHE_DIR"])
-    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
-    return base / "ncstab" / "compiled"
+#: The cache folder of the generated loops and numba's machine code (:mod:`ncstab.cache`).
+CACHE_KIND = "compiled"
 
 
 def _write_module(directory: Path, name: str, source: str) -> Path:
@@ -245,7 +241,7 @@ _LOADING = threading.Lock()
 
 
 def _load_module(source: str) -> Any:
-    """Import the generated module ``source`` from the cache directory.
+    """Import the generated module ``source`` from the cache folder ``<cache root>/compiled``.
 
     The file is named by a hash of its text, of what it imports and of the
     numba and numpy versions (a changed input is a new file, compiled anew),
@@ -265,7 +261,7 @@ def _load_module(source: str) -> Any:
         if name in sys.modules:
             return sys.modules[name]
         try:
-            path = _write_module(_cache_directory(), name, source)
+            path = _write_module(cache_directory(CACHE_KIND), name, source)
         except OSError:  # a read-only home, say
             path = _write_module(Path(tempfile.mkdtemp(prefix="ncstab-compiled-")), name, source)
         spec = importlib.util.spec_from_file_location(name, path)
