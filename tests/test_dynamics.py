@@ -604,3 +604,25 @@ def test_a_graded_mass_is_regular_and_dependent_columns_are_not():
     mass = np.array([[[1.0, 1.0], [1.0, 1.0 + 4e-16]], [[1.0, 1.0], [1.0, 1.0 + 1e-12]]])
     spectrum = dynamic_spectrum(mass, None, np.eye(2))
     assert np.isnan(spectrum[0]).all() and np.isfinite(spectrum[1]).all()
+
+
+def test_solve_mass_with_the_identity_equals_lapack_bit_for_bit():
+    """M = I everywhere (a system without inertia given) skips the solve: the result must
+    be LAPACK's M^-1 K to the bit, with the non-finite cases masked the same way."""
+    from ncstab.operators.dynamic_matrices import solve_mass
+
+    rng = np.random.default_rng(7)
+    stiffness = rng.normal(size=(500, 3, 3))
+    stiffness[3, 0, 0] = np.nan
+    stiffness[8, 2, 1] = np.inf
+    identity = np.broadcast_to(np.eye(3), stiffness.shape)
+    product, valid = solve_mass(identity, stiffness)
+    finite = np.isfinite(stiffness).all(axis=(-2, -1))
+    lapack = np.linalg.solve(np.where(finite[:, None, None], identity, np.eye(3)),
+                             np.where(finite[:, None, None], stiffness, 0.0))
+    np.testing.assert_array_equal(valid, finite)
+    np.testing.assert_array_equal(product, np.where(finite[:, None, None], lapack, 0.0))
+    # A mass that is not the identity still goes through the solve.
+    mass = identity * 2.0
+    product, _ = solve_mass(mass, stiffness)
+    np.testing.assert_allclose(product[finite], stiffness[finite] / 2.0, rtol=1e-15)

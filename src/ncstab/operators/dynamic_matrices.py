@@ -90,8 +90,11 @@ def solve_mass(mass: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarra
     ``False``: the solve is never asked to factor a singular matrix, so one bad
     case cannot stop the batch.
     """
-    valid = regular_mass(mass) & np.isfinite(rhs).all(axis=(-2, -1))
     n = mass.shape[-1]
+    if mass.size and bool((mass == np.eye(n)).all()):  # M = I (no inertia given): M^-1 rhs = rhs exactly
+        valid = np.isfinite(rhs).all(axis=(-2, -1)) & np.ones(mass.shape[:-2], dtype=bool)
+        return np.where(valid[..., None, None], rhs, 0.0), valid
+    valid = regular_mass(mass) & np.isfinite(rhs).all(axis=(-2, -1))
     safe_mass = np.where(valid[..., None, None], mass, np.eye(n))
     safe_rhs = np.where(valid[..., None, None], rhs, 0.0)
     product = np.linalg.solve(safe_mass, safe_rhs)
