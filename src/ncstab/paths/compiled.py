@@ -1,31 +1,36 @@
 """The compiled stepper: the engine's stepping loop as one numba loop per case.
 
-``PathOptions(backend="compiled")`` runs the smooth linear stages of the
-deformable diamond (the fused state kernel of :mod:`ncstab.operators.tangent`,
-seed Eq. 4 and 30-34) through this module instead of the numpy passes of
-:class:`ncstab.paths.stepper.BatchStepper`.  It takes the same steps: the same
-DOP853 tableau and error norm, the same step-size control, the same Newton
-projection onto equilibrium for laws with a total form, the same cofactor
-tangent of the constrained rate system, the same event indicators located by
-the same Illinois iteration on the same DOP853 interpolant, the same cuts at
-stage targets and stop events.  It differs from the numpy stepper only by
-rounding (numpy evaluates some transcendental functions with SIMD code, numba
-with the C library), and its result for a case does not depend on the batch.
+By default (``PathOptions(backend="auto")``, or ``"compiled"`` asked for) the
+linear stages of the deformable reduced diamond (the fused state kernel of
+:mod:`ncstab.operators.tangent`, seed Eq. 4 and 30-34) run through this module
+instead of the numpy passes of :class:`ncstab.paths.stepper.BatchStepper`, the
+cases of a stage shared out over numba's threads (:mod:`ncstab.paths.threads`).
+It takes the same steps: the same DOP853 tableau and error norm, the same
+step-size control, the same Newton projection onto equilibrium for laws with a
+total form, the same cofactor tangent of the constrained rate system, the same
+event indicators located by the same Illinois iteration on the same DOP853
+interpolant, the same cuts at stage targets, stop events and contact switches
+(``secondary_contacts = "activate"``: the spring switches where its gap
+crossing cuts the step, the direction of motion kept, as in
+:func:`ncstab.paths.contacts.switch_contacts`).  It differs from the numpy
+stepper at most by rounding (numpy may evaluate transcendental functions with
+SIMD code, numba with the C library), and its result for a case depends
+neither on the batch nor on the thread.  It does not orient the tangent by
+continuity with the previous step (:func:`ncstab.paths.tangent_field.path_tangent`).
 
-What it does not cover falls back to the numpy stepper (see
-:func:`unsupported_reason`): cycle stages, ``no_tension`` laws (kinks),
-secondary-contact springs that switch (``secondary_contacts = "activate"``),
-the pure-shear limit (``normal = "rigid"``) and systems without a fused
-kernel.  Stage entry, the first stored state of a stage and the assembly of
-the result stay with the numpy stepper: this module runs each case from the
-start of a stage to its end (target, stop event or failure).
+What it does not cover runs on the numpy stepper (see
+:func:`unsupported_reason`): cycle stages, ``no_tension`` laws (kinks), the
+pure-shear limit (``normal = "rigid"``) and general models.  Stage entry, the
+first stored state of a stage and the assembly of the result stay with the
+numpy stepper: this module runs each case from the start of a stage to its
+end (target, stop event or failure).
 
 numba is a dependency of ncstab (it stays optional at import: without it the
-compiled backend asks for it).  Each law's loop is
-generated as a module in a cache directory and compiled once per machine
-(about 10 s; numba caches the machine code beside the module).
+compiled backend asks for it).  Each law's loop is generated as a module in
+the cache folder ``compiled`` (:mod:`ncstab.cache`) and compiled once per
+machine (45-60 s on a 2-core machine; numba caches the machine code beside the
+module).
 """
-
 from __future__ import annotations
 
 import functools
