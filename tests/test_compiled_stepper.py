@@ -381,7 +381,7 @@ def test_compiled_backend_takes_the_numpy_steps(law, name):
     system, programme, parameters, _ = PROGRAMMES[name]
     batch, parsed = batch_and_programme(system, law, programme, parameters)
     # Otherwise the comparison would be the numpy stepper against itself.
-    assert unsupported_reason(batch, parsed, system.secondary_contacts) is None
+    assert unsupported_reason(batch, parsed) is None
     reference = run(law, name, "numpy")
     _check_reference(name, law, reference)
     path = run(law, name, "compiled")
@@ -426,7 +426,7 @@ def test_unsupported_features_fall_back_to_the_numpy_stepper_bitwise(name):
 
     system, law, programme, parameters, options, word = FALLBACKS[name]
     batch, parsed = batch_and_programme(system, law, programme, parameters)
-    reason = unsupported_reason(batch, parsed, system.secondary_contacts)
+    reason = unsupported_reason(batch, parsed)
     assert isinstance(reason, str) and reason
     assert word in reason, reason
     reference = follow(system, law, programme, parameters, numpy_stepper(options))
@@ -469,8 +469,7 @@ def test_unsupported_reason_is_none_for_a_smooth_linear_programme():
 
     for law in LAWS:
         batch, parsed = batch_and_programme(IGNORE, law, PRELOAD_STOP, PRELOAD_GRID)
-        assert unsupported_reason(batch, parsed, "ignore") is None, law
-        assert unsupported_reason(batch, parsed, "stop") is None, law
+        assert unsupported_reason(batch, parsed) is None, law
 
 
 def test_without_numba_the_compiled_backend_asks_for_the_extra(monkeypatch):

@@ -16,15 +16,9 @@ import argparse
 import errno
 from typing import Any
 
+from ncstab.sizes import readable_size
+
 __all__ = ["add_cache_parser", "cache_lines", "command_cache", "readable_size"]
-
-
-def readable_size(size: int) -> str:
-    """``size`` bytes in decimal units to three digits: ``"950 bytes"``, ``"12.4 kB"``, ``"3.1 MB"``."""
-    for unit, scale in (("TB", 10**12), ("GB", 10**9), ("MB", 10**6), ("kB", 10**3)):
-        if size >= scale:
-            return f"{size / scale:.3g} {unit}"
-    return f"{size} byte" if size == 1 else f"{size} bytes"
 
 
 def _count(files: int) -> str:

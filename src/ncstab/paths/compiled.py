@@ -133,7 +133,7 @@ def _terms(weights: np.ndarray, lengths: Any) -> tuple[np.ndarray, np.ndarray]:
     return terms, counts
 
 
-def unsupported_reason(batch: Any, programme: Any, secondary_contacts: str) -> str | None:
+def unsupported_reason(batch: Any, programme: Any) -> str | None:
     """Why the compiled stepper cannot run this batch (``None`` if it can).
 
     Parameters
@@ -142,8 +142,6 @@ def unsupported_reason(batch: Any, programme: Any, secondary_contacts: str) -> s
         The engine's batch of cases.
     programme
         The loading programme.
-    secondary_contacts
-        The system's secondary-contact mode.
     """
     from ncstab.paths.model import CaseBatch
     from ncstab.paths.rigid_model import RigidCaseBatch

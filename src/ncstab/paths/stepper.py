@@ -174,7 +174,7 @@ class BatchStepper:
         #: Per case: 0 on the path followed from the start, +-1 once it has left along a
         #: bifurcating branch that way (stored with every state of a general model).
         self.branch_index = np.zeros(size, dtype=int)
-        self.compiled, self.engine = _compiled_stepper(batch, programme, options, secondary_contacts)
+        self.compiled, self.engine = _compiled_stepper(batch, programme, options)
 
     @property
     def probe_step(self) -> float:
@@ -575,7 +575,7 @@ class BatchStepper:
 
 
 def _compiled_stepper(
-    batch: Any, programme: LoadingProgramme, options: PathOptions, secondary_contacts: str
+    batch: Any, programme: LoadingProgramme, options: PathOptions
 ) -> tuple[CompiledStages | None, str]:
     """The compiled stage loop where ``options.backend`` asks for it and it applies,
     and the engine that runs the batch, in words (the archive's ``engine`` attribute).
@@ -592,7 +592,7 @@ def _compiled_stepper(
         if asked:
             compiled.stage_runner(batch)  # raises, naming what to install
         return None, f"{NUMPY_ENGINE} (numba is not installed)"
-    reason = compiled.unsupported_reason(batch, programme, secondary_contacts)
+    reason = compiled.unsupported_reason(batch, programme)
     if reason is not None:
         because = "backend = 'compiled' asked" if asked else "the compiled stepper does not cover this"
         return None, f"{NUMPY_ENGINE} ({because}: {reason})"

@@ -24,6 +24,7 @@ import shutil
 from dataclasses import dataclass
 from pathlib import Path as FilePath
 
+from ncstab.sizes import readable_size
 from ncstab.studies.errors import (
     DiskFullError,
     LimitError,
@@ -243,13 +244,6 @@ def map_memory(study: Study, estimate: SizeEstimate, cases: int) -> dict[str, fl
     return needs
 
 
-def _size(value: float) -> str:
-    for unit, scale in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
-        if value >= scale:
-            return f"{value / scale:.3g} {unit}"
-    return f"{value:.0f} bytes"
-
-
 def check_study_size(
     study: Study,
     output: str | os.PathLike[str],
@@ -292,17 +286,17 @@ def check_study_size(
         raise LimitError(
             "max_cases", f"{cases:,} cases",
             f"study {study.name!r} has {cases:,} cases ({len(study.laws)} law(s) x {cases // len(study.laws):,}), "
-            f"more than max_cases = {limit:,} (at least {_size(on_disk)} on disk); reduce the sweep, or raise "
+            f"more than max_cases = {limit:,} (at least {readable_size(on_disk)} on disk); reduce the sweep, or raise "
             "[options] max_cases or --max-cases",
         )
     ancestor = _existing_ancestor(FilePath(output).absolute().parent)
     free = free_disk(ancestor)
     if free is not None and on_disk > free:
         raise LimitError(
-            "[parameters]", _size(on_disk),
-            f"study {study.name!r} needs at least {_size(on_disk)} on disk ({cases:,} cases x "
+            "[parameters]", readable_size(on_disk),
+            f"study {study.name!r} needs at least {readable_size(on_disk)} on disk ({cases:,} cases x "
             f"{estimate.mean_states:.0f} states x {estimate.bytes_per_state} bytes, compressed"
-            f"{', parts and archive' if chunked else ''}) and {ancestor} has {_size(free)} free; "
+            f"{', parts and archive' if chunked else ''}) and {ancestor} has {readable_size(free)} free; "
             "reduce the sweep ([parameters]) or free space",
         )
     memory = available_memory()
@@ -312,10 +306,10 @@ def check_study_size(
     if memory is not None and needs.get("directions", 0.0) > memory:
         need = needs["directions"]
         raise LimitError(
-            "[map] directions", _size(need),
+            "[map] directions", readable_size(need),
             f"[map] directions = {study_map.directions}: the directional work d2W_dir of {in_memory:,} "
             f"cases x {estimate.longest_states:.0f} states x {study_map.directions} directions needs at "
-            f"least {_size(need)} of memory, more than the {_size(memory)} available; use fewer "
+            f"least {readable_size(need)} of memory, more than the {readable_size(memory)} available; use fewer "
             "directions (or fewer cases per chunk: --chunk-cases)",
         )
     if memory is not None and needs.get("grid", 0.0) > memory:
@@ -324,9 +318,9 @@ def check_study_size(
         need = needs["grid"]
         (_, _, n1), (_, _, n2) = study_map.grid
         raise LimitError(
-            "[map] grid", _size(need),
+            "[map] grid", readable_size(need),
             f"[map] grid of {n1} x {n2} points: the {len(STATE_MAP_FIELDS)} state maps of {in_memory:,} "
-            f"cases need at least {_size(need)} of memory, more than the {_size(memory)} available; use "
+            f"cases need at least {readable_size(need)} of memory, more than the {readable_size(memory)} available; use "
             "fewer grid points (or fewer cases per chunk: --chunk-cases)",
         )
     return estimate
