@@ -9,10 +9,11 @@ the subprocesses tests start, and nothing is left in the user's home.  Figures,
 archives and doc examples write into ``tmp_path``.
 
 Before the tests start (and before pytest-xdist starts its workers), the
-controlling process compiles the numba loops of the catalogue laws the tests
-follow (:data:`WARM_LAWS`; the compiled stepper is the default engine) into
-the session's cache, in parallel processes, so that no worker compiles them
-again: each loop is compiled once per session, not once per worker.  It does
+controlling process compiles the numba loops (one per form of law, rate or
+total) and the kernels of the catalogue laws the tests follow
+(:data:`WARM_LAWS`; the compiled stepper is the default engine) into the
+session's cache, one process per form, so that no worker compiles them again:
+each loop is compiled once per session, not once per worker.  It does
 so when the tests run on two pytest-xdist workers or more (a single process
 compiles each loop once anyway, on first use); ``NCSTAB_TEST_WARM=0`` skips it
 (the tests then compile the loops they need themselves).  The report header
@@ -98,7 +99,7 @@ def pytest_unconfigure(config: pytest.Config) -> None:
 #: stepper is the default there); laws the compiled stepper does not cover
 #: (``no_tension``) need no loop.
 WARM_LAWS = ("cundall_strack", "weakly_hypoelastic", "mcnamara", "turco")
-#: Seconds a warm-up process may take (a law compiles in about 30 s on one core).
+#: Seconds a warm-up process may take (a form's loop compiles in about 30 s on one core).
 WARM_TIMEOUT = 900
 #: Compiles the loop of each law named on the command line, through the public path.
 WARM_SCRIPT = """
@@ -123,6 +124,21 @@ def _distributed(config: pytest.Config) -> bool:
     return isinstance(workers, int) and workers > 1
 
 
+def _by_form(laws: tuple[str, ...], processes: int) -> list[tuple[str, ...]]:
+    """``laws`` in at most ``processes`` groups, the laws of one form (rate or total) together:
+    the compiled loop is one per form (the laws add their small kernels), so no two
+    processes compile the same loop."""
+    from ncstab.laws.registry import law_definition
+
+    forms: dict[bool, list[str]] = {}
+    for law in laws:
+        forms.setdefault(law_definition(law).has_total_form, []).append(law)
+    groups: list[list[str]] = [[] for _ in range(max(1, min(processes, len(forms))))]
+    for k, members in enumerate(forms.values()):
+        groups[k % len(groups)].extend(members)
+    return [tuple(group) for group in groups]
+
+
 def warm_compiled_loops(laws: tuple[str, ...], processes: int) -> None:
     """Compile the loops of ``laws`` into the cache of ``$NCSTAB_CACHE_DIR``, in ``processes``
     Python processes at once (the same ncstab as this process's).
@@ -135,7 +151,7 @@ def warm_compiled_loops(laws: tuple[str, ...], processes: int) -> None:
     source = str(Path(ncstab.__file__).resolve().parent.parent)
     path = os.pathsep.join([source, *filter(None, [os.environ.get("PYTHONPATH")])])
     environment = dict(os.environ, PYTHONPATH=path)
-    groups = [laws[k::processes] for k in range(processes)]
+    groups = _by_form(laws, processes)
 
     def compile_group(group: tuple[str, ...]) -> subprocess.CompletedProcess[str]:
         return subprocess.run([sys.executable, "-c", WARM_SCRIPT, *group], capture_output=True, text=True,

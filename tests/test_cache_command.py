@@ -83,7 +83,7 @@ def test_the_compiled_loops_are_written_under_the_root(tmp_path, monkeypatch):
     from ncstab.paths import compiled
 
     monkeypatch.setenv("NCSTAB_CACHE_DIR", str(tmp_path / "cache"))
-    module = compiled._load_module(f'"""A generated module of {tmp_path}."""\nVALUE = 7\n')
+    module = compiled._load_module(f'"""A generated module of {tmp_path}."""\nVALUE = 7\n', "ncstab_stage_loop")
     path = Path(module.__file__)
     try:
         assert module.VALUE == 7

@@ -620,7 +620,8 @@ def test_a_study_file_with_a_bad_backend_is_rejected_naming_the_field(value):
 
 
 def test_the_compiled_loop_is_generated_once_and_cached_on_disk():
-    """The loop of a law is a module in the cache directory, with numba's cache beside it."""
+    """The loop of a form (rate or total) and each law's kernel are modules in the cache
+    directory, with numba's cache beside them."""
     from ncstab.cache import cache_directory
 
     follow(SystemSpec(secondary_contacts="ignore"), "cundall_strack", [{"hold": {"F2": 0.0}, "drive": {"D1": 0.01}}],
@@ -629,9 +630,12 @@ def test_the_compiled_loop_is_generated_once_and_cached_on_disk():
     modules = sorted(directory.glob("ncstab_stage_loop_*.py"))
     assert modules, directory
     loaded = [sys.modules[m.stem] for m in modules if m.stem in sys.modules]
-    assert any(module.rate_form and not module.uses_alpha for module in loaded)  # Cundall-Strack's
+    assert any(module.rate_form for module in loaded)  # Cundall-Strack's form
+    kernels = [sys.modules[m.stem] for m in directory.glob("ncstab_law_*.py") if m.stem in sys.modules]
+    assert kernels and all(hasattr(module, "LAW") for module in kernels), kernels
+    assert len(modules) <= 2  # one loop per form (rate, total), whatever the laws
     index = {p.name.split(".")[1].split("-")[0] for p in (directory / "__pycache__").glob("*.nbi")}
-    assert {"run", "start"} <= index
+    assert {"run_cases", "start", "LAW"} <= index, index
 
 
 def test_a_cache_directory_that_cannot_be_written_falls_back_to_a_temporary_one(tmp_path, monkeypatch):
@@ -643,7 +647,7 @@ def test_a_cache_directory_that_cannot_be_written_falls_back_to_a_temporary_one(
     (tmp_path / "tmp").mkdir()
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "tmp"))
     source = '"""A generated module."""\nVALUE = 42\n'
-    module = compiled._load_module(source)
+    module = compiled._load_module(source, "ncstab_test")
     assert module.VALUE == 42
     assert Path(module.__file__).parent.parent == tmp_path / "tmp"
-    assert compiled._load_module(source) is module  # loaded once per process
+    assert compiled._load_module(source, "ncstab_test") is module  # loaded once per process

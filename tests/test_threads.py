@@ -1,4 +1,4 @@
-"""Threads of the compiled stepper: the cases of a stage share numba's threads.
+"""Threads of the compiled stepper: the cases of a stage share the cores.
 
 A case's arithmetic does not depend on the thread that runs it, so every
 archive must be bit for bit the same whatever the thread count (issue 14,
@@ -16,7 +16,8 @@ pytest.importorskip("numba")
 
 from ncstab.cli import main
 from ncstab.paths import PathOptions, SystemSpec, follow
-from ncstab.paths.threads import check_thread_count, thread_limit, using_threads
+from ncstab.paths import compiled_stages
+from ncstab.paths.threads import check_thread_count, thread_count, thread_limit, using_threads
 
 IGNORE = SystemSpec(secondary_contacts="ignore")
 PRELOAD = [
@@ -45,14 +46,41 @@ def test_one_and_two_threads_give_the_same_archive_bit_for_bit():
 
 
 def test_using_threads_restores_the_count():
-    import numba
-
-    before = numba.get_num_threads()
+    before = thread_count()
+    assert before == thread_limit()
     with using_threads(1):
-        assert numba.get_num_threads() == 1
-    assert numba.get_num_threads() == before
+        assert thread_count() == 1
+    assert thread_count() == before
     with using_threads(None):
-        assert numba.get_num_threads() == before
+        assert thread_count() == before
+
+
+@pytest.mark.skipif(thread_limit() < 2, reason="numba runs one thread here (NUMBA_NUM_THREADS or one core)")
+def test_two_threads_run_the_loop_side_by_side_and_one_thread_runs_it_inline(monkeypatch):
+    """The count reaches the pool: two threads submit two strided shares, one thread none."""
+    pools = []
+
+    class Recording(compiled_stages.ThreadPoolExecutor):
+        def __init__(self, workers, **kwargs):
+            super().__init__(workers, **kwargs)
+            self.shares = []
+            pools.append((workers, self.shares))
+
+        def submit(self, function, cases, *arguments):
+            self.shares.append(cases.copy())
+            return super().submit(function, cases, *arguments)
+
+    monkeypatch.setattr(compiled_stages, "ThreadPoolExecutor", Recording)
+    grid = {"gamma": np.linspace(0.5, 1.5, 5), "alpha0": np.pi / 4}
+    with using_threads(1):
+        follow(IGNORE, ["cundall_strack"], [{"hold": {"F2": 0.0}, "drive": {"D1": 0.1}}], grid, PathOptions())
+    assert pools == []
+    with using_threads(2):
+        follow(IGNORE, ["cundall_strack"], [{"hold": {"F2": 0.0}, "drive": {"D1": 0.1}}], grid, PathOptions())
+    workers, shares = pools[0]
+    assert workers == 2
+    np.testing.assert_array_equal(shares[0], [0, 2, 4])
+    np.testing.assert_array_equal(shares[1], [1, 3])
 
 
 @pytest.mark.parametrize("count", [0, -2, 1.5, True])

@@ -5,20 +5,24 @@
 :mod:`ncstab.paths.compiled` for the rest of its current stage, then does
 with the outcome what the numpy passes do: stores the steps, ends or fails
 the case, or enters its next stage (stage entry stays with the stepper).
-The cases of a stage run on numba's threads (``numba.get_num_threads()``:
-every core unless ``NUMBA_NUM_THREADS``, :func:`numba.set_num_threads` or
-``ncstab run --threads`` says fewer).
+The cases of a stage run side by side on threads
+(:func:`ncstab.paths.threads.thread_count`: every core unless
+``NUMBA_NUM_THREADS``, :func:`ncstab.paths.threads.using_threads` or ``ncstab
+run --threads`` says fewer): thread t runs every t-th case through the
+compiled loop, which releases the GIL.
 """
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-import numba
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 
 from ncstab.paths.compiled import EVENT_FIELDS, Outcome, StageLoop
 from ncstab.paths.programme import EVENTS
+from ncstab.paths.threads import thread_count
 
 if TYPE_CHECKING:
     from ncstab.paths.stepper import BatchStepper
@@ -47,14 +51,17 @@ class CompiledStages:
         size = batch.size
         self.runner = loop.run
         self.starter = loop.start
-        # Per case: the law's parameters, kappa, whether the secondary-contact springs act,
-        # and the contact-state bits (kept in step with the stepper's around each call).
-        values = [np.broadcast_to(np.asarray(v, dtype=float), (size,)) for v in batch.law.parameter_values()]
-        values += [
+        self.law = loop.law
+        # Per case (compiled.KAPPA_SLOT, ...): kappa, whether the secondary-contact springs act,
+        # the contact-state bits (kept in step with the stepper's around each call), whether
+        # the law reads alpha, then the law's parameters.
+        values = [
             np.broadcast_to(np.asarray(batch.kappa, dtype=float), (size,)),
             np.full(size, 1.0 if batch.activate_secondary else 0.0),
             np.zeros(size),
+            np.full(size, 1.0 if loop.uses_alpha else 0.0),
         ]
+        values += [np.broadcast_to(np.asarray(v, dtype=float), (size,)) for v in batch.law.parameter_values()]
         self.parameters = np.ascontiguousarray(np.stack(values, axis=-1))
         cos0, sin0 = batch._alpha0_trig
         self.cos0 = np.ascontiguousarray(np.broadcast_to(cos0, (size,)), dtype=float)
@@ -72,7 +79,8 @@ class CompiledStages:
         self.starter(
             cases.astype(np.int64), stepper.y, stepper.derivative, stepper.indicators, stepper.arclength,
             stages.force_controlled, stages.slope, stages.lam_end, stages.target_sign, stages.orientation,
-            np.ascontiguousarray(stages.secondary_state, dtype=np.int64), self.parameters, self.cos0, self.sin0,
+            np.ascontiguousarray(stages.secondary_state, dtype=np.int64), self.law, self.parameters, self.cos0,
+            self.sin0,
             stepper.stage_index[cases[0]] if cases.size else 0,
             tuple(recorder.arrays[name] for name in stepper.record_fields()), recorder.count,
             stepper.step_size, stepper.probe_step, stepper.options.rtol, stepper.options.atol,
@@ -101,22 +109,41 @@ class CompiledStages:
                 recorder = stepper.recorder
                 recorder.reserve(int(recorder.count[cases].max()) + STEPS_PER_CALL)
                 secondary_state = np.ascontiguousarray(stages.secondary_state, dtype=np.int64)
-                self.runner(
-                    cases.astype(np.int64), stepper.y, stepper.derivative, stepper.indicators,
+                arguments = (
+                    stepper.y, stepper.derivative, stepper.indicators,
                     stepper.step_size, stepper.arclength, stepper.accepted, stepper.rejected, stepper.located,
                     stages.force_controlled, stages.offset, stages.slope, stages.lam_end,
                     stages.target_sign, stages.orientation, secondary_state,
-                    self.parameters, self.cos0, self.sin0, stepper.stop_table[k], stepper.break_columns,
+                    self.law, self.parameters, self.cos0, self.sin0, stepper.stop_table[k], stepper.break_columns,
                     event_columns,
                     found, values, stage, int(k), tuple(recorder.arrays[name] for name in fields),
                     recorder.count, self.code, self.detail, stepper.options.rtol, stepper.options.atol,
                     stepper.options.newton_tol, stepper.options.newton_max_iter,
                     stepper.options.min_step, stepper.options.max_step, stepper.options.max_steps,
-                    stepper.options.event_tol, max(1, min(numba.get_num_threads(), cases.size)),
+                    stepper.options.event_tol,
                 )
+                self._run_shared(cases.astype(np.int64), arguments)
                 stages.secondary_state[cases] = secondary_state[cases]  # contacts switched in the loop
                 self._end(stepper, cases)
         self._store_events(stepper, found, values, stage)
+
+    def _run_shared(self, cases: np.ndarray, arguments: tuple) -> None:
+        """Run ``cases`` through the compiled loop, in strided shares on
+        :func:`~ncstab.paths.threads.thread_count` threads (costly cases of a sweep
+        sit side by side, so strides share them out).  A case's arithmetic does
+        not depend on its thread or share: the results are bit for bit those of
+        one thread."""
+        threads = max(1, min(thread_count(), cases.size))
+        if threads == 1:
+            self.runner(cases, *arguments)
+            return
+        with ThreadPoolExecutor(threads, thread_name_prefix="ncstab-stepper") as pool:
+            # contiguous shares: one compiled signature whatever the count
+            shares = [
+                pool.submit(self.runner, np.ascontiguousarray(cases[t::threads]), *arguments) for t in range(threads)
+            ]
+            for share in shares:
+                share.result()
 
     def _end(self, stepper: BatchStepper, cases: np.ndarray) -> None:
         """Do what each case's outcome asks (the numpy stepper's texts and statuses)."""

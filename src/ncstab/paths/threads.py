@@ -1,9 +1,10 @@
 """How many threads the compiled stepper runs a study's cases on.
 
-The compiled stepper (:mod:`ncstab.paths.compiled`) shares the cases of a
-stage out over numba's threads: every core by default, fewer where
-``NUMBA_NUM_THREADS`` (read once, when numba starts) or :func:`using_threads`
-(``ncstab run --threads N``) says so.  A case's arithmetic does not depend on
+The compiled stepper (:mod:`ncstab.paths.compiled_stages`) shares the cases
+of a stage out over threads that run the compiled loop without the GIL: every
+core by default, fewer where ``NUMBA_NUM_THREADS`` (numba's convention, read
+once, when numba starts) or :func:`using_threads` (``ncstab run --threads
+N``) says so.  A case's arithmetic does not depend on
 the thread that runs it, so results are bit for bit the same whatever the
 count.  The workers of a local dask cluster run one thread each
 (:mod:`ncstab.studies.cluster`): there the processes share the cores.
@@ -11,10 +12,14 @@ count.  The workers of a local dask cluster run one thread each
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-__all__ = ["check_thread_count", "thread_limit", "using_threads"]
+__all__ = ["check_thread_count", "thread_count", "thread_limit", "using_threads"]
+
+#: The count chosen by :func:`using_threads`, per calling thread.
+_CHOSEN = threading.local()
 
 
 def thread_limit() -> int:
@@ -43,6 +48,13 @@ def check_thread_count(count: int) -> int:
     return count
 
 
+def thread_count() -> int:
+    """Threads the compiled stepper runs a stage's cases on, when called from this
+    thread: the count of the innermost :func:`using_threads`, else :func:`thread_limit`."""
+    count = getattr(_CHOSEN, "count", None)
+    return thread_limit() if count is None else count
+
+
 @contextmanager
 def using_threads(count: int | None) -> Iterator[None]:
     """Within the block, the compiled stepper of this thread runs on ``count`` threads
@@ -56,12 +68,10 @@ def using_threads(count: int | None) -> Iterator[None]:
     if count is None:
         yield
         return
-    import numba
-
     check_thread_count(count)
-    previous = numba.get_num_threads()
-    numba.set_num_threads(count)
+    previous = getattr(_CHOSEN, "count", None)
+    _CHOSEN.count = count
     try:
         yield
     finally:
-        numba.set_num_threads(previous)
+        _CHOSEN.count = previous
