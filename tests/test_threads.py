@@ -15,8 +15,7 @@ import xarray as xr
 pytest.importorskip("numba")
 
 from ncstab.cli import main
-from ncstab.paths import PathOptions, SystemSpec, follow
-from ncstab.paths import compiled_stages
+from ncstab.paths import PathOptions, SystemSpec, compiled_stages, follow
 from ncstab.paths.threads import check_thread_count, thread_count, thread_limit, using_threads
 
 IGNORE = SystemSpec(secondary_contacts="ignore")

@@ -14,9 +14,8 @@ compiled loop, which releases the GIL.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 from concurrent.futures import ThreadPoolExecutor
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -25,8 +24,8 @@ from ncstab.paths.programme import EVENTS
 from ncstab.paths.threads import thread_count
 
 if TYPE_CHECKING:
-    from ncstab.paths.stepper import BatchStepper
     from ncstab.paths.model import CaseBatch
+    from ncstab.paths.stepper import BatchStepper
 
 __all__ = ["STEPS_PER_CALL", "CompiledStages"]
 
