@@ -107,6 +107,7 @@ class CompiledStages:
                 cases = active[stepper.stage_index[active] == k]
                 recorder = stepper.recorder
                 recorder.reserve(int(recorder.count[cases].max()) + STEPS_PER_CALL)
+                lam_before, count_before = stepper.y[cases, stepper.layout.lam], recorder.count[cases]
                 secondary_state = np.ascontiguousarray(stages.secondary_state, dtype=np.int64)
                 arguments = (
                     stepper.y, stepper.derivative, stepper.indicators,
@@ -122,9 +123,34 @@ class CompiledStages:
                     stepper.options.event_tol,
                 )
                 self._run_shared(cases.astype(np.int64), arguments)
+                self._reserve_for_the_rest(stepper, cases, lam_before, count_before)
                 stages.secondary_state[cases] = secondary_state[cases]  # contacts switched in the loop
                 self._end(stepper, cases)
         self._store_events(stepper, found, values, stage)
+
+    def _reserve_for_the_rest(
+        self, stepper: BatchStepper, cases: np.ndarray, lam_before: np.ndarray, count_before: np.ndarray
+    ) -> None:
+        """Grow the recorder once for what the paused cases of a call still need.
+
+        A case pauses when the recorder is full.  Its states per unit of the
+        stage parameter lambda so far, times what is left to the stage's end
+        (``lam_end``), estimate what it still needs: the recorder grows once
+        to the largest estimate (and a tenth more) instead of doubling at
+        every pause.  Only the memory depends on it, not a number stored.
+        """
+        paused = self.code[cases] == Outcome.PAUSED
+        if not paused.any():
+            return
+        cases, lam_before, count_before = cases[paused], lam_before[paused], count_before[paused]
+        count = stepper.recorder.count[cases]
+        lam = stepper.y[cases, stepper.layout.lam]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            rest = (count - count_before) * np.abs((stepper.stages.lam_end[cases] - lam) / (lam - lam_before))
+        rest = rest[np.isfinite(rest)]
+        if rest.size:
+            needed = count.max() + min(1.1 * rest.max() + 1, 16 * stepper.recorder.capacity)
+            stepper.recorder.reserve(int(needed))
 
     def _run_shared(self, cases: np.ndarray, arguments: tuple) -> None:
         """Run ``cases`` through the compiled loop, in strided shares on

@@ -82,7 +82,7 @@ def path_dataset(result: "PathResult", directions: int | None = None, spectrum: 
                 fill = -1 if a.dtype.kind == "i" else np.nan
                 a = np.concatenate([a, np.full((a.shape[0], pad) + a.shape[2:], fill, dtype=a.dtype)], 1)
             arrays.append(a)
-        array = np.stack(arrays)
+        array = arrays[0][None] if len(arrays) == 1 else np.stack(arrays)  # one law: a view, not a copy
         return array.reshape(shape + array.shape[2:])
 
     K = stacked("K")

@@ -58,8 +58,11 @@ class Recorder:
         if needed > self.capacity:
             capacity = max(needed, 2 * self.capacity)
             for key, array in self.arrays.items():
-                grown = self._blank((self.size, capacity) + array.shape[2:], array.dtype)
+                # Each byte written once (fresh pages are costly to touch): the
+                # old states, then the padding.
+                grown = np.empty((self.size, capacity) + array.shape[2:], array.dtype)
                 grown[:, : self.capacity] = array
+                grown[:, self.capacity :] = -1 if array.dtype.kind == "i" else np.nan
                 self.arrays[key] = grown
             self.capacity = capacity
 
