@@ -651,3 +651,33 @@ def test_a_cache_directory_that_cannot_be_written_falls_back_to_a_temporary_one(
     assert module.VALUE == 42
     assert Path(module.__file__).parent.parent == tmp_path / "tmp"
     assert compiled._load_module(source, "ncstab_test") is module  # loaded once per process
+
+
+def test_a_long_stage_grows_the_recorder_once_not_at_every_doubling(monkeypatch):
+    """Paused cases (recorder full) get room for the rest of their stage at once, estimated
+    from their progress in lambda: 200 states per case take one growth beyond the first
+    call's, where doubling from 8 would take five.  The states are those of one case alone."""
+    from ncstab.paths.recorder import Recorder
+
+    growths = []
+    reserve = Recorder.reserve
+
+    def counting(self, needed):
+        before = self.capacity
+        reserve(self, needed)
+        if self.capacity > before:
+            growths.append(self.capacity)
+
+    monkeypatch.setattr(Recorder, "reserve", counting)
+    programme = [{"hold": {"F2": 0.0}, "drive": {"D1": 0.2}}]
+    options = PathOptions(max_step=0.002)
+    grid = {"gamma": [0.5, 1.0, 1.5]}
+    path = follow(IGNORE, "cundall_strack", programme, grid, options)
+    steps = int(path.results[0].n_steps.max())
+    assert steps > 100
+    assert len(growths) <= 2, growths  # the first call's pause, then the estimate
+    assert growths[-1] >= steps
+    monkeypatch.setattr(Recorder, "reserve", reserve)
+    alone = follow(IGNORE, "cundall_strack", programme, {"gamma": 1.0}, options).to_dataset()
+    in_sweep = path.to_dataset()["u"].sel(gamma=1.0).values[0, : alone.sizes["step"]]
+    np.testing.assert_array_equal(alone["u"].values[0], in_sweep)
