@@ -11,12 +11,13 @@ paid once and cancel.  The fixed cost (about 10 s) is large against the
 marginal one (a few tenths of a second for 4,096 cases), so on a busy machine
 take a larger study (``--big 128``) and several repeats.  The loop runs 256 of the cases, in the same run.
 
-Each command runs with ``--backend`` given to this script (``numpy``, the
-default of study files, or ``compiled``), the figures of the study (a
+Each command runs with ``--backend`` given to this script (``auto``, the
+default of study files: the compiled stepper here; or ``numpy``, or
+``compiled``), the figures of the study (a
 parameter-plane field of the end state, and the load--displacement field) and
 the default archive.
 
-Run:  python benchmarks/bench_whole_run.py [--backend numpy|compiled] [--repeat 3]
+Run:  python benchmarks/bench_whole_run.py [--backend auto|numpy|compiled] [--repeat 3]
 
 A benchmark, not a test: nothing here asserts a time.
 """
@@ -96,7 +97,7 @@ def loop_per_case(cases: int) -> float:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--backend", choices=("numpy", "compiled"), default="numpy")
+    parser.add_argument("--backend", choices=("auto", "numpy", "compiled"), default="auto")
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--loop-cases", type=int, default=256)
     parser.add_argument("--big", type=int, default=64, help="cases per side of the large study")

@@ -328,6 +328,37 @@ def test_spectrum_matches_scipy_eig_of_the_companion_matrix(rng, n):
     np.testing.assert_array_equal(order, np.broadcast_to(np.arange(2 * n), order.shape))
 
 
+def test_undamped_growth_of_two_dofs_is_the_companion_spectrum_in_every_regime(rng):
+    """The real closed form of max Re s (n = 2, C = 0) against scipy's eigenvalues of the
+    companion matrix, on 400 random systems covering the four regimes (real or complex
+    eigenvalues of M^-1 K, positive or negative trace).  Compared as growth^2 =
+    (|mu| + Re mu) / 2, a Lipschitz function of the eigenvalues mu (the square root
+    amplifies their rounding near mu = 0), to 1e-12 of the spectral radius."""
+    mass, _, _ = random_systems(rng, 400, 2)
+    stiffness = rng.normal(size=(400, 2, 2)) * rng.choice([0.1, 1.0, 10.0], size=(400, 1, 1))
+    growth = flutter_indicator(mass, None, stiffness)
+    product = np.linalg.solve(mass, stiffness)
+    half_trace = 0.5 * np.trace(product, axis1=-2, axis2=-1)
+    discriminant = half_trace**2 - np.linalg.det(product)
+    for real in (True, False):
+        for positive in (True, False):
+            assert np.sum(((discriminant >= 0) == real) & ((half_trace > 0) == positive)) >= 20
+    for case in range(400):
+        roots = scipy.linalg.eig(companion(mass[case], np.zeros((2, 2)), stiffness[case]), right=False)
+        expected = roots.real.max()
+        scale = np.abs(roots).max() ** 2
+        assert abs(growth[case] ** 2 - expected**2) <= 1e-12 * scale, (case, growth[case], expected)
+
+
+def test_undamped_growth_near_a_zero_eigenvalue_keeps_its_digits():
+    """K = diag(1, -1e-14), M = I: mu = -1 and 1e-14, so max Re s = 1e-7 exactly to rounding.
+    Subtracting two numbers near 1 (tr/2 - r) would leave one digit of 1e-14."""
+    growth = float(flutter_indicator(np.eye(2), None, np.diag([1.0, -1e-14])))
+    assert growth == pytest.approx(1e-7, rel=1e-12)
+    rotated = float(flutter_indicator(np.eye(2), None, np.diag([-1e-14, 1.0])))
+    assert rotated == pytest.approx(1e-7, rel=1e-12)
+
+
 @pytest.mark.parametrize("n", [2, 3])
 def test_spectrum_is_batch_independent(rng, n):
     mass, damp, stiffness = random_systems(rng, 30, n)

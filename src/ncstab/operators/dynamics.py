@@ -98,8 +98,9 @@ def flutter_indicator(
     :func:`flutter_onset_indicator` and :func:`divergence_indicator`, not on it.
 
     Undamped cases take a shortcut with the same roots: s = +-sqrt(mu) with mu
-    the n eigenvalues of -M^-1 K (closed form for n = 2), so max Re s is the
-    largest |Re sqrt(mu)| -- an n x n problem instead of the 2n x 2n companion.
+    the n eigenvalues of -M^-1 K, so max Re s is the largest |Re sqrt(mu)| --
+    an n x n problem instead of the 2n x 2n companion; for n = 2 in closed
+    form (:func:`_undamped_growth_2`).
     """
     mass, damping, stiffness = as_dynamic_matrices(mass, damping, stiffness)
     undamped = _undamped(damping, mass.shape[:-2])
@@ -107,14 +108,41 @@ def flutter_indicator(
         return dynamic_spectrum(mass, damping, stiffness).real.max(axis=-1)
     product, valid = solve_mass(mass, stiffness)
     if mass.shape[-1] == 2:
-        trace = product[..., 0, 0] + product[..., 1, 1]
-        determinant = product[..., 0, 0] * product[..., 1, 1] - product[..., 0, 1] * product[..., 1, 0]
-        root = np.sqrt((trace * trace - 4 * determinant).astype(complex))
-        mu = -np.stack([(trace + root) / 2, (trace - root) / 2], axis=-1)
+        growth = _undamped_growth_2(product)
     else:
         mu = -np.linalg.eigvals(product).astype(complex)
-    growth = np.abs(np.sqrt(mu).real).max(axis=-1)
+        growth = np.abs(np.sqrt(mu).real).max(axis=-1)
     return np.where(valid, growth, np.nan)
+
+
+def _undamped_growth_2(product: np.ndarray) -> np.ndarray:
+    """max |Re sqrt(mu)| over the two eigenvalues mu of -P, P = M^-1 K ``(..., 2, 2)``, in real arithmetic.
+
+    With h = tr P / 2, d = det P and the discriminant h^2 - d, the eigenvalues of
+    P are h +- r, r = sqrt(h^2 - d), where it is >= 0: mu = -(h -+ r) is real and
+    the growth is sqrt(max(r - h, 0)), r - h taken as -d / (r + h) where h > 0
+    (no cancellation near d = 0).  Where it is < 0, mu = -h -+ i q with
+    q = sqrt(d - h^2) and |mu| = sqrt(d): Re sqrt(mu) = sqrt((sqrt(d) - h) / 2),
+    taken as q / (2 sqrt((sqrt(d) + h) / 2)) where h > 0 (the usual stable form of
+    the complex square root).  The roots s are those of the companion matrix.
+    """
+    p00, p01, p10, p11 = product[..., 0, 0], product[..., 0, 1], product[..., 1, 0], product[..., 1, 1]
+    half_trace = 0.5 * (p00 + p11)
+    determinant = p00 * p11 - p01 * p10
+    discriminant = half_trace * half_trace - determinant
+    with np.errstate(invalid="ignore", divide="ignore"):
+        r = np.sqrt(np.maximum(discriminant, 0.0))
+        real_mu = np.where(half_trace > 0, -determinant / (r + half_trace), r - half_trace)
+        real_growth = np.sqrt(np.maximum(real_mu, 0.0))
+        modulus = np.sqrt(np.maximum(determinant, 0.0))
+        q = np.sqrt(np.maximum(-discriminant, 0.0))
+        complex_growth = np.where(
+            half_trace > 0,
+            q / (2 * np.sqrt(0.5 * (modulus + half_trace))),
+            np.sqrt(0.5 * (modulus - half_trace)),
+        )
+    growth = np.where(discriminant >= 0, real_growth, complex_growth)
+    return np.where(np.isnan(discriminant), np.nan, growth)
 
 
 def divergence_indicator(
