@@ -29,9 +29,11 @@ GRID = {"gamma": np.linspace(0.1, 2.0, 8), "alpha0": np.pi / 4, "F2_lateral": np
 
 
 def _dataset(threads: int) -> xr.Dataset:
+    """The archive with ``threads`` threads, for the stepping and for the Dataset's
+    indicators (a second thread computes some of them)."""
     with using_threads(threads):
         path = follow(IGNORE, ["cundall_strack", "mcnamara"], PRELOAD, GRID, PathOptions())
-    dataset = path.to_dataset()
+        dataset = path.to_dataset()
     dataset.attrs.pop("created", None)
     return dataset
 

@@ -59,12 +59,15 @@ def hill_eigenvalue(stiffness: np.ndarray) -> np.ndarray:
     Hill's condition (second-order work du . K du > 0 for every du != 0) holds
     while it is positive.
     """
-    sym = symmetric_part(np.asarray(stiffness, dtype=float))
-    if sym.shape[-1] == 2:
-        mean = 0.5 * (sym[..., 0, 0] + sym[..., 1, 1])
-        radius = np.hypot(0.5 * (sym[..., 0, 0] - sym[..., 1, 1]), sym[..., 0, 1])
+    stiffness = np.asarray(stiffness, dtype=float)
+    if stiffness.shape[-1] == 2:
+        # From K's entries: K_sym's diagonal is K's (0.5 (k + k) = k exactly), its
+        # off-diagonal entry 0.5 (K01 + K10), as symmetric_part rounds it.
+        k00, k11 = stiffness[..., 0, 0], stiffness[..., 1, 1]
+        mean = 0.5 * (k00 + k11)
+        radius = np.hypot(0.5 * (k00 - k11), 0.5 * (stiffness[..., 0, 1] + stiffness[..., 1, 0]))
         return mean - radius
-    return _on_finite(lambda m: np.linalg.eigvalsh(m)[..., 0], sym)
+    return _on_finite(lambda m: np.linalg.eigvalsh(m)[..., 0], symmetric_part(stiffness))
 
 
 def second_order_work(stiffness: np.ndarray, direction: np.ndarray) -> np.ndarray:

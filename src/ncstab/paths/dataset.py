@@ -11,6 +11,7 @@ generalized forces minus the loads (load stiffness included).
 from __future__ import annotations
 
 import datetime as _dt
+from concurrent.futures import Future, ThreadPoolExecutor
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -19,6 +20,7 @@ import ncstab
 from ncstab.operators.indicators import det_K, flutter_discriminant, hill_eigenvalue, skew_part, symmetric_part
 from ncstab.paths.model_batch import family_fields
 from ncstab.paths.programme import EVENTS
+from ncstab.paths.threads import thread_count
 from ncstab.paths.variables import (
     CASE_DIMENSION,
     EVENT_FIELDS,
@@ -86,12 +88,16 @@ def path_dataset(result: "PathResult", directions: int | None = None, spectrum: 
         return array.reshape(shape + array.shape[2:])
 
     K = stacked("K")
-    du = stacked("du")
-    dF = np.einsum("...ij,...j->...i", K, du)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        d2w = np.einsum("...i,...i->...", dF, du) / (np.linalg.norm(dF, axis=-1) * np.linalg.norm(du, axis=-1))
     stage = stacked("stage")
-    mixed = result.mixed_control(K, stage)
+    # The indicators at every stored state, in numpy: the second-order work,
+    # the flutter variable and the mixed control on a second thread where the
+    # study may use two (numpy releases the GIL in its loops), the rest here.
+    with ThreadPoolExecutor(1) if thread_count() > 1 else _Inline() as pool:
+        d2w = pool.submit(_normalised_work, K, stacked("du"))
+        flutter = pool.submit(_flutter, result, stacked("u"), K)
+        mixed = pool.submit(result.mixed_control, K, stage)
+        K_sym, K_skew, det, hill = symmetric_part(K), skew_part(K), det_K(K), hill_eigenvalue(K)
+        d2w, flutter, mixed = d2w.result(), flutter.result(), mixed.result()
     members = _members(result)
 
     step_dims = [*sweep_dims, "step"]
@@ -104,12 +110,12 @@ def path_dataset(result: "PathResult", directions: int | None = None, spectrum: 
         "lam": (step_dims, stacked("lam")),
         "work": (step_dims, stacked("work")),
         "K": (step_dims + ["i", "j"], K),
-        "K_sym": (step_dims + ["i", "j"], symmetric_part(K)),
-        "K_skew": (step_dims + ["i", "j"], skew_part(K)),
-        "det_K": (step_dims, det_K(K)),
-        "hill": (step_dims, hill_eigenvalue(K)),
+        "K_sym": (step_dims + ["i", "j"], K_sym),
+        "K_skew": (step_dims + ["i", "j"], K_skew),
+        "det_K": (step_dims, det),
+        "hill": (step_dims, hill),
         "d2W": (step_dims, d2w),
-        "flutter": (step_dims, _flutter(result, stacked("u"), K)),
+        "flutter": (step_dims, flutter),
         "mixed_control": (step_dims, mixed),
         "n_steps": (sweep_dims, np.stack([r.n_steps for r in result.results]).reshape(shape).astype(np.int32)),
         "status": (sweep_dims, result.status.astype(str)),
@@ -271,6 +277,28 @@ def _spectrum(result: "PathResult", u: np.ndarray, K: np.ndarray) -> np.ndarray:
         damping = compiled.damping(flat_u[finite], parameters)
         out[finite] = dynamic_spectrum(mass, damping, flat_K[finite])
     return out.reshape(u.shape[:-1] + (2 * n,))
+
+
+class _Inline:
+    """A stand-in for a one-thread pool that runs what it is given at once (one thread asked for)."""
+
+    def __enter__(self) -> "_Inline":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        return None
+
+    def submit(self, function, *args):
+        done: Future = Future()
+        done.set_result(function(*args))
+        return done
+
+
+def _normalised_work(K: np.ndarray, du: np.ndarray) -> np.ndarray:
+    """d2W along the path, du . K du / (|K du| |du|) (the cosine between dF and du)."""
+    dF = np.einsum("...ij,...j->...i", K, du)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.einsum("...i,...i->...", dF, du) / (np.linalg.norm(dF, axis=-1) * np.linalg.norm(du, axis=-1))
 
 
 def _flutter(result: "PathResult", u: np.ndarray, K: np.ndarray) -> np.ndarray:
