@@ -69,21 +69,21 @@ def test_the_root_is_ncstab_cache_dir_else_xdg_cache_home_else_home(tmp_path, mo
 
 
 def test_every_cache_of_ncstab_is_a_registered_kind_and_no_other_is_accepted():
-    from ncstab.paths import compiled
+    from ncstab.paths import compiled_source
     from ncstab.studies.verification import VALID_STUDIES_KIND
     from ncstab.symbolic.class_cache import CACHE_KIND
 
-    assert set(CACHE_KINDS) == {compiled.CACHE_KIND, CACHE_KIND, VALID_STUDIES_KIND}
+    assert set(CACHE_KINDS) == {compiled_source.CACHE_KIND, CACHE_KIND, VALID_STUDIES_KIND}
     with pytest.raises(ValueError, match="unknown cache 'loops'"):
         cache_directory("loops")
 
 
 def test_the_compiled_loops_are_written_under_the_root(tmp_path, monkeypatch):
     pytest.importorskip("numba")
-    from ncstab.paths import compiled
+    from ncstab.paths import compiled_source
 
     monkeypatch.setenv("NCSTAB_CACHE_DIR", str(tmp_path / "cache"))
-    module = compiled._load_module(f'"""A generated module of {tmp_path}."""\nVALUE = 7\n', "ncstab_stage_loop")
+    module = compiled_source.load_module(f'"""A generated module of {tmp_path}."""\nVALUE = 7\n', "ncstab_stage_loop")
     path = Path(module.__file__)
     try:
         assert module.VALUE == 7

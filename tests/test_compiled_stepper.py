@@ -639,7 +639,7 @@ def test_the_compiled_loop_is_generated_once_and_cached_on_disk():
 
 
 def test_a_cache_directory_that_cannot_be_written_falls_back_to_a_temporary_one(tmp_path, monkeypatch):
-    from ncstab.paths import compiled
+    from ncstab.paths import compiled_source
 
     blocked = tmp_path / "file"
     blocked.write_text("not a directory")
@@ -647,10 +647,10 @@ def test_a_cache_directory_that_cannot_be_written_falls_back_to_a_temporary_one(
     (tmp_path / "tmp").mkdir()
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "tmp"))
     source = '"""A generated module."""\nVALUE = 42\n'
-    module = compiled._load_module(source, "ncstab_test")
+    module = compiled_source.load_module(source, "ncstab_test")
     assert module.VALUE == 42
     assert Path(module.__file__).parent.parent == tmp_path / "tmp"
-    assert compiled._load_module(source, "ncstab_test") is module  # loaded once per process
+    assert compiled_source.load_module(source, "ncstab_test") is module  # loaded once per process
 
 
 def test_a_long_stage_grows_the_recorder_once_not_at_every_doubling(monkeypatch):

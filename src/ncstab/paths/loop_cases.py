@@ -1,0 +1,283 @@
+"""Template, part 3 of 3, of the compiled stage loop: each case through its stage.
+
+Pasted after :mod:`ncstab.paths.loop_model` and :mod:`ncstab.paths.loop_steps`
+(see the first): ``run_cases`` takes each case from its state to the end of its
+stage (target, stop event, failure, or a full recorder), ``start`` starts a
+stage.  The parameters of :func:`cases_part` are the names it uses from parts
+1 and 2 (it is never called).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from ncstab.paths.compiled import (
+    _EXTENDED,
+    _N_COLUMNS,
+    _POWER,
+    _STAGES,
+    BREAK_ALWAYS,
+    Outcome,
+    StageLoop,
+)
+from ncstab.paths.events import CYCLE_COLUMN, INDICATOR_GAP, TARGET_COLUMN
+
+__all__ = ["cases_part"]
+
+
+def cases_part(
+    rate_form, M, angle, dense_coefficients, dop853, indicators, locate, motion, motion_product,
+    n_columns, njit, project, rhs, sign, state_slot, store_event, store_record, target_column,
+) -> StageLoop:
+    """Define ``run_cases`` and ``start`` and return them (a template: see the module docstring)."""
+    half_pi = math.pi / 2
+    cut_always = np.array([c in (TARGET_COLUMN, CYCLE_COLUMN) or BREAK_ALWAYS[c] for c in range(_N_COLUMNS)])
+    switch_bits = np.array(INDICATOR_GAP, dtype=np.int64)
+    Outcome_PAUSED, Outcome_TARGET, Outcome_STOPPED = Outcome.PAUSED, Outcome.TARGET, Outcome.STOPPED
+    Outcome_STEP_SIZE_UNDERFLOW, Outcome_LEFT_DOMAIN = Outcome.STEP_SIZE_UNDERFLOW, Outcome.LEFT_DOMAIN
+    Outcome_MAX_STEPS = Outcome.MAX_STEPS
+
+    @numba.njit(cache=False, error_model="numpy", nogil=True)
+    def run_cases(cases, y, derivative, indicator_table, step_size, arclength, accepted, rejected, located,
+                  force_controlled, offset, slope, lam_end, target_sign, orientation, secondary_state,
+                  law, parameters, cos0, sin0, stop_row, break_row, event_columns, event_found, event_values, event_stage,
+                  stage_number, recorded, record_count, code, detail, rtol, atol, newton_tol,
+                  newton_max_iter, min_step, max_step, max_steps, event_tol):
+        """Run cases ``cases`` through their current (linear) stage, one after the other;
+        see :class:`Outcome`.
+
+        Mirrors one case's passes of stepper.BatchStepper: a DOP853 step (projected),
+        the step-size control, the domain check, crossings located, the cut, the
+        first events, the commit and the end of the stage.  A case reads and
+        writes its own rows only, so cases may run on any thread in any order
+        (the loop releases the GIL: :mod:`ncstab.paths.compiled_stages` runs
+        strided shares of the cases on Python threads side by side).
+        """
+        capacity = recorded[0].shape[1]
+        stages = np.empty((_EXTENDED, M))
+        y0 = np.empty(M)
+        y_raw = np.empty(M)
+        y_new = np.empty(M)
+        dy_new = np.empty(M)
+        work = np.empty((3, M))
+        coefficients = np.empty((_POWER, M))
+        located_states = np.empty((n_columns, M))
+        ev = np.empty(16)
+        aux = np.empty(6)
+        ev_new = np.empty(16)
+        aux_new = np.empty(6)
+        values = np.empty(n_columns)
+        after = np.empty(n_columns)
+        before = np.empty(n_columns)
+        sigma = np.empty(n_columns)
+        lower = np.empty(n_columns)
+        upper = np.empty(n_columns)
+        change = np.zeros(n_columns, dtype=np.bool_)
+        motion_before = np.empty(5)
+        for i in cases:
+            fc0, fc1 = force_controlled[i, 0], force_controlled[i, 1]
+            g0, g1 = slope[i, 0], slope[i, 1]
+            p = parameters[i]
+            sec = secondary_state[i]
+            p[state_slot] = sec
+            c0, s0 = cos0[i], sin0[i]
+            orient = orientation[i]
+            code[i] = Outcome_PAUSED
+            while record_count[i] < capacity:
+                h = min(step_size[i], max_step)
+                for j in range(M):
+                    y0[j] = y[i, j]
+                err = dop853(y0, derivative[i], h, rtol, atol, fc0, fc1, g0, g1, orient, law, p, c0, s0,
+                             stages, y_raw, work, ev_new, aux_new)
+                for j in range(M):
+                    y_new[j] = y_raw[j]
+                if not rate_form and np.isfinite(err) and not project(
+                    y_new, fc0, fc1, offset[i], slope[i], law, p, c0, s0, newton_tol, newton_max_iter, ev_new
+                ):
+                    err = np.inf
+                accept = err <= 1.0
+                if err == 0:
+                    factor = 10.0
+                elif np.isfinite(err):
+                    factor = min(max(0.9 / np.sqrt(np.sqrt(np.sqrt(err))), 0.2), 10.0)  # integrator.step_factor
+                else:
+                    factor = 0.25
+                if not accept:
+                    factor = min(factor, 0.9)
+                step_size[i] = min(max(h * factor, 0.0), max_step)
+                if not accept:
+                    rejected[i] += 1
+                    if step_size[i] < min_step:
+                        code[i] = Outcome_STEP_SIZE_UNDERFLOW
+                        break
+                    continue
+                if rate_form:  # the last DOP853 stage was evaluated at the end state
+                    for j in range(M):
+                        dy_new[j] = stages[_STAGES, j]
+                else:
+                    rhs(y_new, fc0, fc1, g0, g1, orient, law, p, c0, s0, dy_new, ev_new, aux_new)
+                # --- _fail_outside_domain
+                finite = np.isfinite(ev_new[4]) and np.isfinite(ev_new[5])
+                for j in range(M):
+                    finite = finite and np.isfinite(y_new[j])
+                if not finite or not (ev_new[0] > 0) or not (abs(angle(ev_new)) < half_pi):
+                    code[i] = Outcome_LEFT_DOMAIN
+                    detail[i] = 0 if not finite else (1 if not (ev_new[0] > 0) else 2)
+                    break
+                # --- _complete: indicators, crossings located, cut, events, commit
+                indicators(ev_new, aux_new, y_new[2], fc0, fc1, lam_end[i], target_sign[i],
+                           sec, after)
+                any_change = False
+                for c in range(n_columns):
+                    before[c] = indicator_table[i, c]
+                    change[c] = sign(before[c]) * sign(after[c]) < 0
+                change[target_column] = before[target_column] < 0 and after[target_column] >= 0
+                for c in range(n_columns):
+                    sigma[c] = np.inf
+                    lower[c] = np.nan
+                    upper[c] = np.nan
+                    any_change = any_change or change[c]
+                exact_target = change[target_column] and after[target_column] == 0
+                if any_change:
+                    searched = False
+                    for c in range(n_columns):
+                        searched = searched or (change[c] and not (c == target_column and exact_target))
+                    if searched:
+                        dense_coefficients(y0, y_raw, h, fc0, fc1, g0, g1, orient, law, p, c0, s0, stages,
+                                           coefficients, work, ev, aux)
+                    for c in range(n_columns):
+                        if not change[c] or (c == target_column and exact_target):
+                            continue
+                        sigma[c], lower[c], upper[c] = locate(
+                            c, h, before[c], after[c], y0, coefficients, fc0, fc1, offset[i], slope[i],
+                            lam_end[i], target_sign[i], orient, sec, law, p, c0, s0,
+                            newton_tol, newton_max_iter, event_tol, ev, aux, values, located_states[c],
+                        )
+                        located[i] += 1
+                    if exact_target:
+                        sigma[target_column] = lower[target_column] = upper[target_column] = h
+                        for j in range(M):
+                            located_states[target_column, j] = y_new[j]
+                # _cut_points: the target, stop events (and contact switches, none here)
+                cut_column = 0
+                cut_sigma = np.inf
+                for c in range(n_columns):
+                    cutting = change[c] and (stop_row[c] or cut_always[c] or break_row[c])
+                    if cutting and sigma[c] < cut_sigma:
+                        cut_sigma = sigma[c]
+                        cut_column = c
+                is_cut = np.isfinite(cut_sigma)
+                reach = cut_sigma if is_cut else h
+                # _store_first_events
+                for e in range(event_columns.shape[0]):
+                    best = np.inf
+                    best_column = -1
+                    for k in range(event_columns.shape[1]):
+                        c = event_columns[e, k]
+                        if c >= 0 and (best_column < 0 or sigma[c] < best):
+                            best = sigma[c]
+                            best_column = c
+                    if np.isfinite(best) and best <= reach + event_tol and not event_found[e, i]:
+                        state = located_states[best_column]
+                        rhs(state, fc0, fc1, g0, g1, orient, law, p, c0, s0, work[2], ev, aux)
+                        event_found[e, i] = True
+                        event_stage[e, i] = stage_number
+                        store_event(event_values[e, i], arclength[i], sigma[best_column], lower[best_column],
+                                    upper[best_column], state, ev)
+                if is_cut:  # _move_to_cut_points
+                    for j in range(M):
+                        y_new[j] = located_states[cut_column, j]
+                    switching = break_row[cut_column]
+                    kept = 0.0
+                    if switching:  # _switch_contacts_at: the direction of motion is kept
+                        rhs(y_new, fc0, fc1, g0, g1, orient, law, p, c0, s0, work[2], ev, aux)
+                        motion(ev, aux, motion_before)
+                        sec = sec ^ switch_bits[cut_column]
+                        p[state_slot] = sec
+                        secondary_state[i] = sec
+                        rhs(y_new, fc0, fc1, g0, g1, orient, law, p, c0, s0, work[2], ev, aux)
+                        if motion_product(motion_before, ev, aux) < 0:
+                            orient = -orient
+                            orientation[i] = orient
+                        kept = after[cut_column]
+                    rhs(y_new, fc0, fc1, g0, g1, orient, law, p, c0, s0, dy_new, ev_new, aux_new)
+                    indicators(ev_new, aux_new, y_new[2], fc0, fc1, lam_end[i], target_sign[i],
+                               sec, after)
+                    if switching:  # the post-crossing sign, so the crossing is not found twice
+                        after[cut_column] = kept
+                # _commit
+                for j in range(M):
+                    y[i, j] = y_new[j]
+                    derivative[i, j] = dy_new[j]
+                arclength[i] += reach
+                accepted[i] += 1
+                for c in range(n_columns):
+                    indicator_table[i, c] = after[c]
+                store_record(recorded, i, record_count[i], arclength[i], stage_number, y_new, ev_new, aux_new)
+                record_count[i] += 1
+                # _end_stages
+                stop_hit = is_cut and cut_column != target_column and stop_row[cut_column]
+                at_target = cut_column == target_column or after[target_column] >= 0
+                target_hit = is_cut and not stop_hit and at_target
+                if stop_hit:
+                    code[i] = Outcome_STOPPED
+                    detail[i] = cut_column
+                    break
+                if accepted[i] >= max_steps and not target_hit:
+                    code[i] = Outcome_MAX_STEPS
+                    break
+                if target_hit:
+                    code[i] = Outcome_TARGET
+                    break
+
+    @njit
+    def initial_step_size(y0, f0, f1, probe, rtol, atol):
+        # integrator.initial_step_size, one case (np.mean over m: a sum in order, then / m)
+        s1 = 0.0
+        s2 = 0.0
+        for j in range(M):
+            scale = atol + abs(y0[j]) * rtol
+            a = f0[j] / scale
+            b = (f1[j] - f0[j]) / scale
+            s1 += a * a
+            s2 += b * b
+        d1 = np.sqrt(s1 / M)
+        d2 = np.sqrt(s2 / M) / probe
+        largest = np.nan if (np.isnan(d1) or np.isnan(d2)) else max(d1, d2)
+        if not np.isfinite(largest):
+            return probe
+        if largest <= 1e-15:
+            return min(100 * probe, max(1e-6, 1e-3 * probe))
+        return min(100 * probe, np.sqrt(np.sqrt(np.sqrt(0.01 / largest))))
+
+    @numba.njit(cache=False, error_model="numpy")
+    def start(cases, y, derivative, indicator_table, arclength, force_controlled, slope, lam_end, target_sign,
+              orientation, secondary_state, law, parameters, cos0, sin0, stage_number, recorded, record_count,
+              step_size, probe, rtol, atol):
+        """Cases ``cases`` start their (set up) stage: dy/ds, indicators, state stored
+        (stage_entry._start_stage); the first step where ``step_size`` is NaN
+        (stage_entry._estimate_first_steps)."""
+        state = np.empty(M)
+        ev = np.empty(16)
+        aux = np.empty(6)
+        f1 = np.empty(M)
+        for i in cases:
+            for j in range(M):
+                state[j] = y[i, j]
+            fc0, fc1, g0, g1 = force_controlled[i, 0], force_controlled[i, 1], slope[i, 0], slope[i, 1]
+            parameters[i, state_slot] = secondary_state[i]
+            rhs(state, fc0, fc1, g0, g1, orientation[i], law, parameters[i], cos0[i], sin0[i], derivative[i], ev, aux)
+            indicators(ev, aux, state[2], fc0, fc1, lam_end[i], target_sign[i], secondary_state[i],
+                       indicator_table[i])
+            store_record(recorded, i, record_count[i], arclength[i], stage_number, state, ev, aux)
+            record_count[i] += 1
+            if np.isnan(step_size[i]):
+                for j in range(M):
+                    state[j] = y[i, j] + probe * derivative[i, j]
+                rhs(state, fc0, fc1, g0, g1, orientation[i], law, parameters[i], cos0[i], sin0[i], f1, ev, aux)
+                step_size[i] = initial_step_size(y[i], derivative[i], f1, probe, rtol, atol)
+
+    return StageLoop(run_cases, start)

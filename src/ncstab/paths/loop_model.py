@@ -1,0 +1,196 @@
+"""Template, part 1 of 3, of the compiled stage loop: the reduced diamond's model.
+
+The body of :func:`model_part` is pasted, with the bodies of
+:func:`ncstab.paths.loop_steps.steps_part` and
+:func:`ncstab.paths.loop_cases.cases_part` after it, into one generated module
+per form of law (:func:`ncstab.paths.compiled_source.loop_source`), which
+numba compiles and caches; the function itself is never called.  This part
+sets up the decorators and the state layout and defines the model as the
+loop sees it: the law's kernel (the argument ``law``, a C callback) at a state,
+the cofactor tangent of the constrained rate system, dy/ds and the event
+indicators (seed Eq. 4, 30-34; every helper cites the numpy function it
+follows operation for operation).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from ncstab.paths.compiled import ACTIVATE_SLOT, ALPHA_SLOT, KAPPA_SLOT, STATE_SLOT
+from ncstab.paths.events import SIGN_NOISE, TINY
+
+__all__ = ["model_part"]
+
+
+def model_part(rate_form: bool) -> None:
+    """Define the model's helpers (a template: see the module docstring).
+
+    Parameters
+    ----------
+    rate_form
+        Whether the laws of this loop have a rate form (T an internal variable).
+    """
+    # The helpers are called from compiled code only: no CPython or C wrapper is
+    # built for them.  Those of every DOP853 stage (evaluate, tangent, the stage
+    # sums) are inlined in numba's IR: a third off the stepping for 6 s of the
+    # first compilation (20 s without, 26 s with; see docs/paths.md).
+    njit = numba.njit(cache=False, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+    hot = numba.njit(cache=False, error_model="numpy", inline="always")
+    sign_noise, tiny = SIGN_NOISE, TINY
+    N_INT = 1 if rate_form else 0  # internal variables: T for a rate form (one contact family)
+    M = 4 + N_INT  # noqa: F841 (y = (v0, v1, lambda, [T], W); read by parts 2 and 3)
+    # The case's row p: kappa, whether the secondary springs act, the contact-state
+    # bits, whether the law reads alpha, then the law's parameters (KAPPA_SLOT, ...).
+    kappa_slot, activate_slot, state_slot, alpha_slot = KAPPA_SLOT, ACTIVATE_SLOT, STATE_SLOT, ALPHA_SLOT
+
+    @hot
+    def evaluate(v0, v1, t_in, law, p, cos0, sin0, ev):
+        # model.CaseBatch._evaluate_fused: ev = (l, alpha, N, T, F0, F1, K00, K01, K10, K11,
+        # dT/dD1, dT/dD2, gap0, gap1, vertical, horizontal); alpha only where the law
+        # reads it (else NaN here, see angle())
+        vertical = cos0 - v0
+        horizontal = sin0 - v1
+        length = np.sqrt(vertical * vertical + horizontal * horizontal)
+        alpha = np.arctan2(horizontal, vertical) if p[alpha_slot] > 0 else np.nan
+        law(length, alpha, vertical / length, horizontal / length, t_in, p.ctypes, ev.ctypes)  # ev[2:]
+        ev[0] = length
+        ev[1] = alpha
+        ev[14] = vertical
+        ev[15] = horizontal
+        if not rate_form:
+            ev[10] = np.nan
+            ev[11] = np.nan
+        ev[12] = gap(vertical)
+        ev[13] = gap(horizontal)
+        if p[activate_slot] > 0:
+            # model.CaseBatch._evaluate_fused: the secondary-contact springs whose bit is set
+            kappa, state = p[kappa_slot], int(p[state_slot])
+            ev[4] += kappa * ((1.0 - 2.0 * vertical) if (state & 1) > 0 else 0.0)
+            ev[6] += 2.0 * kappa * (1.0 if (state & 1) > 0 else 0.0)
+            ev[5] += kappa * ((1.0 - 2.0 * horizontal) if (state & 2) > 0 else 0.0)
+            ev[9] += 2.0 * kappa * (1.0 if (state & 2) > 0 else 0.0)
+
+    @njit
+    def gap(extent):
+        # the secondary-contact gap along one diagonal (model: 2 (cos alpha0 - Delta_1) - 1, ...)
+        return extent * 2 - 1
+
+    @njit
+    def signed_gap(value, secondary, bit):
+        # events.indicator_values: a gap exactly at zero takes the sign of the contact's state
+        if value == 0:
+            return -tiny if (secondary & bit) > 0 else tiny
+        return value
+
+    @njit
+    def angle(ev):
+        # alpha = arctan2(horizontal, vertical), computed once where the law did not need it
+        if np.isnan(ev[1]):  # evaluate() leaves it NaN where the law does not read it
+            ev[1] = np.arctan2(ev[15], ev[14])
+        return ev[1]
+
+    @hot
+    def tangent(ev, fc0, fc1, g0, g1, orientation, aux):
+        # tangent_field._path_tangent_2 with du/dv = I, dF/dv = K: aux = (dv0, dv1, du0, du1, dlam, det_m)
+        k00, k01, k10, k11 = ev[6], ev[7], ev[8], ev[9]
+        m00 = k00 if fc0 else 1.0
+        m01 = k01 if fc0 else 0.0
+        m10 = k10 if fc1 else 0.0
+        m11 = k11 if fc1 else 1.0
+        det_m = m00 * m11 - m01 * m10
+        dv0 = m11 * g0 - m01 * g1
+        dv1 = m00 * g1 - m10 * g0
+        du0 = 1.0 * dv0 + 0.0 * dv1
+        du1 = 0.0 * dv0 + 1.0 * dv1
+        df0 = k00 * dv0 + k01 * dv1
+        df1 = k10 * dv0 + k11 * dv1
+        norm = np.sqrt((du0 * du0 + du1 * du1) + (df0 * df0 + df1 * df1) + det_m * det_m)
+        # (1 / norm) * orientation, as one division: orientation is +-1, so the
+        # same number (one rounding), one operation shorter on the critical path
+        scale = orientation / norm if norm > 0 else np.nan
+        aux[0] = dv0 * scale
+        aux[1] = dv1 * scale
+        aux[2] = du0 * scale
+        aux[3] = du1 * scale
+        aux[4] = det_m * scale
+        aux[5] = det_m
+
+    def rhs_py(y, fc0, fc1, g0, g1, orientation, law, p, cos0, sin0, dy, ev, aux):
+        # rhs.state_derivative: dy/ds = (dv, dlambda, dinternal, dW)
+        t_in = y[3] if N_INT else 0.0
+        evaluate(y[0], y[1], t_in, law, p, cos0, sin0, ev)
+        tangent(ev, fc0, fc1, g0, g1, orientation, aux)
+        dy[0] = aux[0]
+        dy[1] = aux[1]
+        dy[2] = aux[4]
+        if N_INT:
+            dy[3] = ev[10] * aux[0] + ev[11] * aux[1]
+        dy[3 + N_INT] = 0.5 * (ev[4] * aux[2] + ev[5] * aux[3])
+
+    # Inlined where every step evaluates it (the DOP853 stages), called elsewhere:
+    # inlining it everywhere costs seconds of compilation for no measurable gain.
+    rhs_hot = hot(rhs_py)  # noqa: F841 (read by parts 2 and 3)
+    rhs = njit(rhs_py)  # noqa: F841
+
+    @njit
+    def motion(ev, aux, out):
+        # contacts.switch_contacts.motion: (du, dF = K dv, dlambda) of the tangent in aux
+        out[0] = aux[2]
+        out[1] = aux[3]
+        out[2] = ev[6] * aux[0] + ev[7] * aux[1]
+        out[3] = ev[8] * aux[0] + ev[9] * aux[1]
+        out[4] = aux[4]
+
+    @njit
+    def motion_product(before, ev, aux):
+        # the sum over (du, dF, dlambda) of motion(after) * motion(before), in order
+        total = aux[2] * before[0]
+        total += aux[3] * before[1]
+        total += (ev[6] * aux[0] + ev[7] * aux[1]) * before[2]
+        total += (ev[8] * aux[0] + ev[9] * aux[1]) * before[3]
+        total += aux[4] * before[4]
+        return total
+
+    @njit
+    def significant(value, size):
+        # events.indicator_values.significant
+        return 0.0 if abs(value) <= sign_noise * size else value
+
+    @njit
+    def indicators(ev, aux, lam, fc0, fc1, lam_end, target_sign, secondary, out):
+        # events.indicator_values (linear stage, no no_tension overlap)
+        k00, k01, k10, k11 = ev[6], ev[7], ev[8], ev[9]
+        m00 = k00 if fc0 else 1.0
+        m01 = k01 if fc0 else 0.0
+        m10 = k10 if fc1 else 0.0
+        m11 = k11 if fc1 else 1.0
+        scale = np.nan
+        for value in (k00, k01, k10, k11, m00, m01, m10, m11):
+            a = abs(value)
+            if not np.isnan(a) and not (a <= scale):  # nanmax
+                scale = a
+        if not (np.isfinite(scale) and scale > 0):
+            scale = 1.0
+        square = scale * scale
+        out[0] = significant(k00 * k11 - k01 * k10, square)
+        s00 = 0.5 * (k00 + k00)
+        s01 = 0.5 * (k01 + k10)
+        s11 = 0.5 * (k11 + k11)
+        mean = 0.5 * (s00 + s11)
+        radius = np.hypot(0.5 * (s00 - s11), s01)
+        out[1] = significant(mean - radius, scale)
+        out[2] = significant(m00 * m11 - m01 * m10, square)
+        difference = k00 - k11
+        out[3] = significant(difference * difference + 4 * k01 * k10, square)
+        out[4] = signed_gap(ev[12], secondary, 1)
+        out[5] = signed_gap(ev[13], secondary, 2)
+        out[6] = aux[4]
+        out[7] = np.nan
+        out[8] = np.nan
+        out[9] = target_indicator(lam, lam_end, target_sign)
+
+    @njit
+    def target_indicator(lam, lam_end, target_sign):
+        # events.indicator_values: the stage target, (lambda - lambda_end) sign
+        return (lam - lam_end) * target_sign
