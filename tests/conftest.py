@@ -96,8 +96,9 @@ def pytest_unconfigure(config: pytest.Config) -> None:
 # --- compiling the compiled stepper's loops once per session -----------------------------------
 
 #: The catalogue laws the tests follow on the reduced diamond (the compiled
-#: stepper is the default there); laws the compiled stepper does not cover
-#: (``no_tension``) need no loop.
+#: stepper is the default there): one of each form compiles its loop, and each
+#: its kernel (their ``no_tension`` variants compile their own kernels, in a
+#: second, where a test first follows them).
 WARM_LAWS = ("cundall_strack", "weakly_hypoelastic", "mcnamara", "turco")
 #: Seconds a warm-up process may take (a form's loop compiles in about 30 s on one core).
 WARM_TIMEOUT = 900

@@ -401,14 +401,6 @@ FALLBACKS = {
         PathOptions(max_step=0.5),
         "cycle",
     ),
-    "no_tension": (
-        IGNORE,
-        "mcnamara+no_tension",
-        [{"hold": {"F2": 0.0}, "drive": {"D1": -0.1}}, {"hold": {"F2": 0.0}, "drive": {"D1": 0.1}}],
-        {"gamma": [0.5, 2.0], "alpha0": ALPHA0},
-        PathOptions(),
-        "no_tension",
-    ),
     "rigid": (
         SystemSpec(normal="rigid", secondary_contacts="ignore"),
         "mcnamara",
@@ -451,17 +443,47 @@ def test_the_dataset_records_which_engine_ran_each_law():
     laws = ["cundall_strack", "mcnamara+no_tension"]
     grid = {"gamma": [0.5, 2.0], "alpha0": ALPHA0}
     path = follow(IGNORE, laws, UNIAXIAL, grid, compiled(PathOptions()))
-    engine = path.to_dataset().attrs["engine"]
-    parts = dict(part.split(": ", 1) for part in engine.split("; "))
+    parts = dict(part.split(": ", 1) for part in path.to_dataset().attrs["engine"].split("; "))
     assert list(parts) == laws
-    assert parts["cundall_strack"].startswith(f"compiled stepper (numba {numba.__version__})")
-    assert parts["mcnamara+no_tension"].startswith("numpy stepper (backend = 'compiled' asked: no_tension")
-    assert follow(IGNORE, laws[0], UNIAXIAL, grid).to_dataset().attrs["engine"] == (
-        f"cundall_strack: compiled stepper (numba {numba.__version__}), numpy stepper for what it leaves"
-    )
+    for law in laws:
+        assert parts[law] == f"compiled stepper (numba {numba.__version__}), numpy stepper for what it leaves"
+    cycle = [{"cycle": {"center": [0.04, 0.02], "turns": 1, "direction": 1}}]
+    on_cycles = follow(IGNORE, laws, cycle, grid, compiled(PathOptions(max_step=0.5)))
+    parts = dict(part.split(": ", 1) for part in on_cycles.to_dataset().attrs["engine"].split("; "))
+    for law in laws:
+        assert parts[law].startswith("numpy stepper (backend = 'compiled' asked: cycle stages"), parts[law]
     assert follow(IGNORE, laws[0], UNIAXIAL, grid, numpy_stepper(PathOptions())).to_dataset().attrs[
         "engine"
     ] == "cundall_strack: numpy stepper"
+
+
+#: Extension opens the normal contact of a no_tension law (delta < 0: no normal
+#: spring), compression closes it again: two located switches per case.
+TENSION = [{"hold": {"F2": 0.0}, "drive": {"D1": -0.1}}, {"hold": {"F2": 0.0}, "drive": {"D1": 0.1}}]
+TENSION_GRID = {"gamma": [0.5, 1.0, 2.0], "alpha0": [0.6, ALPHA0, 1.0]}
+
+
+@pytest.mark.parametrize("law", LAWS)
+def test_a_no_tension_law_opens_and_closes_its_contact_as_on_the_numpy_stepper(law):
+    """The compiled stepper follows the open branch where the normal contact's bit is set
+    and switches at the located zero of the overlap, as the numpy stepper does: same
+    statuses and steps, states within RTOL/ATOL (as for the smooth laws above); to the
+    bit for Cundall--Strack, whose kernels read no alpha."""
+    from ncstab.paths.compiled import unsupported_reason
+
+    law = f"{law}+no_tension"
+    batch, parsed = batch_and_programme(IGNORE, law, TENSION, TENSION_GRID)
+    assert unsupported_reason(batch, parsed) is None
+    reference = follow(IGNORE, law, TENSION, TENSION_GRID, numpy_stepper(PathOptions()))
+    path = follow(IGNORE, law, TENSION, TENSION_GRID, PathOptions())
+    assert path.results[0].engine.startswith("compiled stepper")
+    assert reference.succeeded.all(), reference.message
+    normal = reference.results[0].steps["N"].reshape(len(reference.status.ravel()), -1)
+    # Every case followed both branches: open (no normal force) and closed again (N > 0).
+    assert np.all(np.any(normal == 0, axis=1) & np.any(normal > 0, axis=1)), normal
+    assert_results_close(reference.results[0], path.results[0])
+    if law == "cundall_strack+no_tension":
+        assert_results_identical(reference.results[0], path.results[0])
 
 
 def test_unsupported_reason_is_none_for_a_smooth_linear_programme():

@@ -40,9 +40,9 @@ KNOWN_DIFFERENCES = {
     "stability_diagram_reduced": [{"law": "turco", "gamma": 2.0, "F2_lateral": 0.0}],
 }
 #: Studies whose laws the default engine runs on the numpy stepper, the archive
-#: saying why (the rigid normal, cycle stages); in the others every law but the
-#: no_tension ones runs on the compiled stepper (linear stages of the deformable
-#: reduced diamond, secondary contacts ignored or activated).
+#: saying why (the rigid normal, cycle stages); in the others every law runs on
+#: the compiled stepper (linear stages of the deformable reduced diamond,
+#: secondary contacts ignored or activated, no_tension laws too).
 #: The compiled stepper does not orient the tangent by continuity, so on the known
 #: difference above it takes the golden's thirty small steps, and the end states
 #: agree as they do for the numpy stepper.
@@ -98,7 +98,7 @@ def _documented_changes(golden: xr.Dataset, computed: xr.Dataset) -> xr.Dataset:
     engines = dict(part.split(": ", 1) for part in computed.attrs["engine"].split("; "))
     assert list(engines) == laws
     for law, engine in engines.items():
-        if computed.attrs["study_name"] not in NUMPY_STEPPER and "no_tension" not in law:
+        if computed.attrs["study_name"] not in NUMPY_STEPPER:
             assert engine.startswith("compiled stepper (numba "), (law, engine)
         else:
             assert engine.startswith("numpy stepper (the compiled stepper does not cover this: "), (law, engine)

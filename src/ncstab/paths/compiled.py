@@ -11,7 +11,9 @@ total form, the same cofactor tangent of the constrained rate system, the same
 event indicators located by the same Illinois iteration on the same DOP853
 interpolant, the same cuts at stage targets, stop events and contact switches
 (``secondary_contacts = "activate"``: the spring switches where its gap
-crossing cuts the step, the direction of motion kept, as in
+crossing cuts the step; a ``no_tension`` law's normal contact opens or closes
+where its overlap crosses zero and the law's open or closed branch serves
+from there; the direction of motion kept, as in
 :func:`ncstab.paths.contacts.switch_contacts`).  It differs from the numpy
 stepper at most by rounding (numpy may evaluate transcendental functions with
 SIMD code, numba with the C library), and its result for a case depends
@@ -19,8 +21,7 @@ neither on the batch nor on the thread.  It does not orient the tangent by
 continuity with the previous step (:func:`ncstab.paths.tangent_field.path_tangent`).
 
 What it does not cover runs on the numpy stepper (see
-:func:`unsupported_reason`): cycle stages, ``no_tension`` laws (kinks), the
-pure-shear limit (``normal = "rigid"``) and general models.  Stage entry, the
+:func:`unsupported_reason`): cycle stages, the pure-shear limit (``normal = "rigid"``) and general models.  Stage entry, the
 first stored state of a stage and the assembly of the result stay with the
 numpy stepper: this module runs each case from the start of a stage to its
 end (target, stop event or failure).
@@ -120,7 +121,7 @@ _D = np.ascontiguousarray(dop.D, dtype=float)
 _POWER = dop.INTERPOLATOR_POWER
 #: Columns whose crossing always cuts the step: the normal contact of a
 #: no_tension law switches branch (crossings.event_tables); secondary contacts
-#: switch only with "activate", which this stepper does not run.
+#: switch only with "activate" (the stage's break columns).
 BREAK_ALWAYS = tuple(gap == 4 for gap in INDICATOR_GAP)
 
 
@@ -153,12 +154,10 @@ def unsupported_reason(batch: Any, programme: Any) -> str | None:
         return "the pure-shear limit (normal = 'rigid') runs on the numpy stepper"
     if type(batch) is not CaseBatch:
         return "general models (any system but the seed's reduced diamond) run on the numpy stepper"
-    if batch.law.definition.no_tension:
-        return "no_tension laws (a kink at contact opening) run on the numpy stepper"
     if any(isinstance(stage, CycleStage) for stage in programme.stages):
         return "cycle stages run on the numpy stepper"
     kernels = batch._kernels
-    if kernels is None or len(kernels) != 1 or batch.n_dof != 2:
+    if kernels is None or len(kernels) != (2 if batch.law.definition.no_tension else 1) or batch.n_dof != 2:
         return "this system has no fused state kernel; it runs on the numpy stepper"
     return None
 
@@ -173,15 +172,31 @@ LAW_SIGNATURE = (
 
 
 @functools.cache
-def _runner(kernel: Callable[..., list], n_parameters: int, rate_form: bool) -> StageLoop:
-    """The loop for one law's fused kernel: the loop of its form (two per machine,
+def _runner(
+    kernels: tuple[Callable[..., list], ...], overlap: Callable[..., Any] | None, n_parameters: int, rate_form: bool
+) -> StageLoop:
+    """The loop for one law's fused kernels: the loop of its form (two per machine,
     compiled once) and the law's own kernel (compiled once per law, a second or two)."""
     from ncstab.paths.compiled_source import kernel_body, kernel_source, load_module, loop_source
 
-    uses_alpha = re.search(r"\balpha_\b", kernel_body(kernel)) is not None
+    uses_alpha = any(re.search(r"\balpha_\b", kernel_body(kernel)) for kernel in kernels)
+    uses_alpha |= overlap is not None and re.search(r"\balpha\b", kernel_body(overlap)) is not None
     loop = load_module(loop_source(rate_form), "ncstab_stage_loop").LOOP
-    law = load_module(kernel_source(kernel, n_parameters, 10 if rate_form else 8), "ncstab_law").LAW
+    law = load_module(kernel_source(kernels, overlap, n_parameters, 10 if rate_form else 8), "ncstab_law").LAW
     return StageLoop(loop.run, loop.start, law, uses_alpha)
+
+
+@functools.cache
+def _overlap_function(definition: Any) -> Callable[..., Any]:
+    """delta(l, alpha, *parameters), the normal overlap of a no_tension law (before any
+    bracket), as a scalar function whose source the kernel module takes (sympy once)."""
+    import sympy as sp
+    from sympy.printing.numpy import NumPyPrinter
+
+    from ncstab.laws.definition import ALPHA, L
+
+    arguments = [L, ALPHA, *definition.parameter_symbols]
+    return sp.lambdify(arguments, definition.normal_overlap, modules="numpy", printer=NumPyPrinter)
 
 
 def stage_runner(batch: Any) -> StageLoop:
@@ -197,5 +212,6 @@ def stage_runner(batch: Any) -> StageLoop:
             "PathOptions.backend = 'compiled' needs numba, a dependency of ncstab: pip install numba "
             "(or use backend = 'numpy')"
         )
-    (kernel,) = batch._kernels
-    return _runner(kernel, len(batch.law.definition.parameter_names), not batch.law.has_total_form)
+    definition = batch.law.definition
+    overlap = _overlap_function(definition) if definition.no_tension else None
+    return _runner(tuple(batch._kernels), overlap, len(definition.parameter_names), not batch.law.has_total_form)

@@ -65,9 +65,9 @@ def cases_part(
         work = np.empty((3, M))
         coefficients = np.empty((_POWER, M))
         located_states = np.empty((n_columns, M))
-        ev = np.empty(16)
+        ev = np.empty(17)
         aux = np.empty(6)
-        ev_new = np.empty(16)
+        ev_new = np.empty(17)
         aux_new = np.empty(6)
         values = np.empty(n_columns)
         after = np.empty(n_columns)
@@ -261,7 +261,7 @@ def cases_part(
         (stage_entry._start_stage); the first step where ``step_size`` is NaN
         (stage_entry._estimate_first_steps)."""
         state = np.empty(M)
-        ev = np.empty(16)
+        ev = np.empty(17)
         aux = np.empty(6)
         f1 = np.empty(M)
         for i in cases:

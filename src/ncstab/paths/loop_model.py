@@ -47,13 +47,15 @@ def model_part(rate_form: bool) -> None:
     @hot
     def evaluate(v0, v1, t_in, law, p, cos0, sin0, ev):
         # model.CaseBatch._evaluate_fused: ev = (l, alpha, N, T, F0, F1, K00, K01, K10, K11,
-        # dT/dD1, dT/dD2, gap0, gap1, vertical, horizontal); alpha only where the law
-        # reads it (else NaN here, see angle())
+        # dT/dD1, dT/dD2, gap0, gap1, vertical, horizontal, delta); alpha only where the law
+        # reads it (else NaN here, see angle()); the law writes ev[2:12] (its branch: the
+        # normal contact's bit of the contact state) and delta, its normal overlap (NaN
+        # unless it is a no_tension law)
         vertical = cos0 - v0
         horizontal = sin0 - v1
         length = np.sqrt(vertical * vertical + horizontal * horizontal)
         alpha = np.arctan2(horizontal, vertical) if p[alpha_slot] > 0 else np.nan
-        law(length, alpha, vertical / length, horizontal / length, t_in, p.ctypes, ev.ctypes)  # ev[2:]
+        law(length, alpha, vertical / length, horizontal / length, t_in, p.ctypes, ev.ctypes)  # ev[2:12], ev[16]
         ev[0] = length
         ev[1] = alpha
         ev[14] = vertical
@@ -159,7 +161,7 @@ def model_part(rate_form: bool) -> None:
 
     @njit
     def indicators(ev, aux, lam, fc0, fc1, lam_end, target_sign, secondary, out):
-        # events.indicator_values (linear stage, no no_tension overlap)
+        # events.indicator_values (linear stage)
         k00, k01, k10, k11 = ev[6], ev[7], ev[8], ev[9]
         m00 = k00 if fc0 else 1.0
         m01 = k01 if fc0 else 0.0
@@ -186,7 +188,7 @@ def model_part(rate_form: bool) -> None:
         out[4] = signed_gap(ev[12], secondary, 1)
         out[5] = signed_gap(ev[13], secondary, 2)
         out[6] = aux[4]
-        out[7] = np.nan
+        out[7] = signed_gap(ev[16], secondary, 4)  # a no_tension law's normal overlap (NaN otherwise)
         out[8] = np.nan
         out[9] = target_indicator(lam, lam_end, target_sign)
 
