@@ -105,3 +105,22 @@ def test_ncstab_run_with_a_bad_thread_count_exits_2_naming_the_option(tmp_path, 
     err = capsys.readouterr().err
     assert "--threads" in err and "Traceback" not in err
     assert not (tmp_path / "s.nc").exists()
+
+
+@pytest.mark.skipif(thread_limit() < 2, reason="numba runs one thread here (NUMBA_NUM_THREADS or one core)")
+def test_the_side_thread_is_another_thread_only_where_two_are_allowed():
+    """The Dataset's second thread (side_thread): work runs in the calling thread under
+    one thread, on another under two, and gives the same result either way."""
+    import threading
+
+    from ncstab.paths.threads import side_thread
+
+    def where(value):
+        return threading.get_ident(), value * 2
+
+    with using_threads(1), side_thread() as pool:
+        one = pool.submit(where, 21).result()
+    with using_threads(2), side_thread() as pool:
+        two = pool.submit(where, 21).result()
+    assert one == (threading.get_ident(), 42)
+    assert two[0] != threading.get_ident() and two[1] == 42

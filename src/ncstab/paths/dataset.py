@@ -11,7 +11,6 @@ generalized forces minus the loads (load stiffness included).
 from __future__ import annotations
 
 import datetime as _dt
-from concurrent.futures import Future, ThreadPoolExecutor
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -20,7 +19,7 @@ import ncstab
 from ncstab.operators.indicators import det_K, flutter_discriminant, hill_eigenvalue, skew_part, symmetric_part
 from ncstab.paths.model_batch import family_fields
 from ncstab.paths.programme import EVENTS
-from ncstab.paths.threads import thread_count
+from ncstab.paths.threads import side_thread
 from ncstab.paths.variables import (
     CASE_DIMENSION,
     EVENT_FIELDS,
@@ -92,7 +91,7 @@ def path_dataset(result: "PathResult", directions: int | None = None, spectrum: 
     # The indicators at every stored state, in numpy: the second-order work,
     # the flutter variable and the mixed control on a second thread where the
     # study may use two (numpy releases the GIL in its loops), the rest here.
-    with ThreadPoolExecutor(1) if thread_count() > 1 else _Inline() as pool:
+    with side_thread() as pool:
         d2w = pool.submit(_normalised_work, K, stacked("du"))
         flutter = pool.submit(_flutter, result, stacked("u"), K)
         mixed = pool.submit(result.mixed_control, K, stage)
@@ -277,21 +276,6 @@ def _spectrum(result: "PathResult", u: np.ndarray, K: np.ndarray) -> np.ndarray:
         damping = compiled.damping(flat_u[finite], parameters)
         out[finite] = dynamic_spectrum(mass, damping, flat_K[finite])
     return out.reshape(u.shape[:-1] + (2 * n,))
-
-
-class _Inline:
-    """A stand-in for a one-thread pool that runs what it is given at once (one thread asked for)."""
-
-    def __enter__(self) -> "_Inline":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        return None
-
-    def submit(self, function, *args):
-        done: Future = Future()
-        done.set_result(function(*args))
-        return done
 
 
 def _normalised_work(K: np.ndarray, du: np.ndarray) -> np.ndarray:

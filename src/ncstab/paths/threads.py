@@ -13,10 +13,12 @@ count.  The workers of a local dask cluster run one thread each
 from __future__ import annotations
 
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from concurrent.futures import Executor, Future, ThreadPoolExecutor
 from contextlib import contextmanager
+from typing import Any
 
-__all__ = ["check_thread_count", "thread_count", "thread_limit", "using_threads"]
+__all__ = ["check_thread_count", "side_thread", "thread_count", "thread_limit", "using_threads"]
 
 #: The count chosen by :func:`using_threads`, per calling thread.
 _CHOSEN = threading.local()
@@ -75,3 +77,19 @@ def using_threads(count: int | None) -> Iterator[None]:
         yield
     finally:
         _CHOSEN.count = previous
+
+
+class _Inline(Executor):
+    """An executor that runs what it is given at once, in the calling thread."""
+
+    def submit(self, function: Callable[..., Any], /, *args: Any, **kwargs: Any) -> Future:
+        done: Future = Future()
+        done.set_result(function(*args, **kwargs))
+        return done
+
+
+def side_thread() -> Executor:
+    """One more thread for work beside the calling thread's (numpy releases the GIL in
+    its loops), where :func:`thread_count` allows two; else an executor that runs the
+    work at once in the calling thread.  Use it as a context manager."""
+    return ThreadPoolExecutor(1, thread_name_prefix="ncstab-side") if thread_count() > 1 else _Inline()
