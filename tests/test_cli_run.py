@@ -171,12 +171,12 @@ def test_console_script_runs_a_study(tmp_path):
 def test_on_a_terminal_the_run_says_when_it_writes_the_archive(tmp_path, capsys, monkeypatch):
     """No silent pause between the run's bar and the figures' bar: writing the archive
     is announced before it starts, then timed; with --quiet (or off a terminal) not."""
-    import ncstab.cli as cli
+    import ncstab.run_command as run_command
 
     study = tmp_path / "tiny.toml"
     study.write_text(TINY_STUDY)
     output = tmp_path / "tiny.nc"
-    monkeypatch.setattr(cli, "_wants_progress", lambda args: not args.quiet)
+    monkeypatch.setattr(run_command, "_wants_progress", lambda args: not args.quiet)
     assert main(["run", str(study), "-o", str(output)]) == 0
     lines = capsys.readouterr().err.splitlines()
     writing = [line for line in lines if "writing" in line]
