@@ -171,7 +171,7 @@ def test_console_script_runs_a_study(tmp_path):
 def test_on_a_terminal_the_run_says_when_it_writes_the_archive(tmp_path, capsys, monkeypatch):
     """No silent pause between the run's bar and the figures' bar: writing the archive
     is announced before it starts, then timed; with --quiet (or off a terminal) not."""
-    import ncstab.run_command as run_command
+    from ncstab import run_command
 
     study = tmp_path / "tiny.toml"
     study.write_text(TINY_STUDY)
