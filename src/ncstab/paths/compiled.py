@@ -4,7 +4,7 @@ By default (``PathOptions(backend="auto")``, or ``"compiled"`` asked for) the
 linear stages of the deformable reduced diamond (the fused state kernel of
 :mod:`ncstab.operators.tangent`, seed Eq. 4 and 30-34) run through this module
 instead of the numpy passes of :class:`ncstab.paths.stepper.BatchStepper`, the
-cases of a stage shared out over numba's threads (:mod:`ncstab.paths.threads`).
+cases of a stage shared out over threads (:mod:`ncstab.paths.threads`).
 It takes the same steps: the same DOP853 tableau and error norm, the same
 step-size control, the same Newton projection onto equilibrium for laws with a
 total form, the same cofactor tangent of the constrained rate system, the same

@@ -49,7 +49,6 @@ def kernel_body(kernel: Callable[..., list]) -> str:
     return source[source.index(":\n") + 2 :]
 
 
-
 def loop_source(rate_form: bool) -> str:
     """The stage loop of every law of one form as the text of a module: the bodies of
     the three template parts (:mod:`ncstab.paths.loop_model`, :mod:`~ncstab.paths.loop_steps`,

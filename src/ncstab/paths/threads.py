@@ -60,7 +60,7 @@ def thread_count() -> int:
 @contextmanager
 def using_threads(count: int | None) -> Iterator[None]:
     """Within the block, the compiled stepper of this thread runs on ``count`` threads
-    (``None``: numba's current count, unchanged).
+    (``None``: the current count, unchanged).
 
     Raises
     ------
