@@ -81,7 +81,7 @@ def _documented_changes(golden: xr.Dataset, computed: xr.Dataset) -> xr.Dataset:
     * ``flutter_onset_frequency`` is added (NaN: no flutter onset in these studies).
 
     and (issue 19, CF details): the numeric coordinates ``step`` and ``cycle``
-    have ``units = "1"``.  (Integer data variables are written with a
+    have ``units = "1"``, and the archive has CF's ``history`` attribute.  (Integer data variables are written with a
     ``_FillValue``, -1; it is an encoding of the file, not in the Dataset.)
     """
     names = computed["dof"].values
@@ -103,6 +103,9 @@ def _documented_changes(golden: xr.Dataset, computed: xr.Dataset) -> xr.Dataset:
         else:
             assert engine.startswith("numpy stepper (the compiled stepper does not cover this: "), (law, engine)
     changed.attrs["engine"] = computed.attrs["engine"]
+    assert "history" not in golden.attrs
+    assert computed.attrs["history"] == f"ncstab {computed.attrs['ncstab_version']}: the study's cases followed along its loading programme"
+    changed.attrs["history"] = computed.attrs["history"]
     for name in computed.data_vars:
         if name.startswith(("bifurcation_", "divergence_")) or name == "flutter_onset_frequency":
             found = computed[name]

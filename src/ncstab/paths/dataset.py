@@ -351,6 +351,9 @@ def _attributes(result: "PathResult") -> dict:
         "title": "ncstab path study",
         "ncstab_version": ncstab.__version__,
         "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        # CF 2.6.2: an audit trail (the time is in ``created``, so that two runs of a
+        # study give identical attributes but that one)
+        "history": f"ncstab {ncstab.__version__}: the study's cases followed along its loading programme",
         "study": result.study_text,
         "system": definition.name,
         "system_settings": settings,
