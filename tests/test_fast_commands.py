@@ -74,11 +74,13 @@ def test_module_version_in_a_subprocess_prints_the_version():
 
 
 def test_every_public_name_is_importable_as_before():
+    import ncstab.operators
     import ncstab.paths
     import ncstab.studies
+    import ncstab.systems
     from ncstab import DiamondChain, follow, make_law, open_study  # noqa: F401
 
-    for package in (ncstab, ncstab.paths, ncstab.studies):
+    for package in (ncstab, ncstab.paths, ncstab.studies, ncstab.systems, ncstab.operators):
         for name in package.__all__:
             assert getattr(package, name) is not None, (package.__name__, name)
             assert name in dir(package)
@@ -211,6 +213,18 @@ def swept_archive(tmp_path_factory) -> Path:
 def info_text(swept_archive, cache, capsys) -> str:
     assert main(["info", str(swept_archive)]) == 0
     return capsys.readouterr().out
+
+
+def test_plot_imports_neither_sympy_nor_the_engine(swept_archive, tmp_path):
+    """``ncstab plot`` draws what the archive stores: the symbolic layer (sympy, a
+    second of import) and the path engine (numba) stay out of its process."""
+    # the cache ncstab run used: the run remembered its study as valid, so the
+    # archive's check does not parse it again (which needs the law catalogue, sympy)
+    env = dict(os.environ, NCSTAB_CACHE_DIR=str(swept_archive.parent / "cache"), MPLBACKEND="Agg")
+    imported = _imported_after(["plot", str(swept_archive), "--directory", str(tmp_path)], env)
+    assert {"xarray", "matplotlib"} <= set(imported)  # it did draw
+    assert not {"sympy", "numba"} & set(imported)
+    assert sorted(path.name for path in tmp_path.glob("*.png"))
 
 
 def test_info_lines_fit_in_100_characters(info_text):

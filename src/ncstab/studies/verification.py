@@ -27,7 +27,8 @@ from ncstab.studies.figure_kinds import FIGURE_KINDS
 if TYPE_CHECKING:  # pragma: no cover
     import xarray as xr
 
-__all__ = ["REQUIRED_VARIABLES", "check_archive", "check_digests", "check_study_text", "existing_file", "known_status", "opened", "verified"]
+__all__ = ["REQUIRED_VARIABLES", "check_archive", "check_digests", "check_study_text", "existing_file", "known_status", "opened",
+           "remember_valid_study", "verified"]
 
 #: Variables every archive has (with the coordinate ``law``).
 REQUIRED_VARIABLES = ("status", "message", "n_steps")
@@ -161,11 +162,9 @@ def check_study_text(study: str, path: str | os.PathLike[str]) -> None:
     ArchiveError
         The text is not a valid study file (the first error it has).
     """
-    import ncstab
-    from ncstab.cache import read_entry, write_entry
+    from ncstab.cache import read_entry
 
-    key = hashlib.sha256(f"ncstab {ncstab.__version__}\n{study}".encode()).hexdigest()
-    if read_entry(VALID_STUDIES_KIND, key) == {"valid": True}:
+    if read_entry(VALID_STUDIES_KIND, _study_key(study)) == {"valid": True}:
         return
     from ncstab.studies.study import StudyFileError, parse_study
 
@@ -174,7 +173,23 @@ def check_study_text(study: str, path: str | os.PathLike[str]) -> None:
     except StudyFileError as error:
         field, message = error.errors[0]
         raise ArchiveError(path, f"its 'study' attribute is not a valid study file ({field}: {message})") from None
-    write_entry(VALID_STUDIES_KIND, key, {"valid": True})
+    remember_valid_study(study)
+
+
+def remember_valid_study(study: str) -> None:
+    """Remember a study text as valid (it parsed), so that :func:`check_study_text` of
+    an archive of that study skips the parse: ``ncstab run`` calls it for every study
+    it loads, and ``ncstab plot``/``info`` of its archives then import no sympy."""
+    from ncstab.cache import write_entry
+
+    write_entry(VALID_STUDIES_KIND, _study_key(study), {"valid": True})
+
+
+def _study_key(study: str) -> str:
+    """The cache key of a study text: SHA-256 of the ncstab version and the text."""
+    import ncstab
+
+    return hashlib.sha256(f"ncstab {ncstab.__version__}\n{study}".encode()).hexdigest()
 
 
 def known_status(status: str) -> bool:

@@ -10,19 +10,9 @@
   :mod:`ncstab.systems.closed_forms`.
 """
 
-from ncstab.systems.compile import CompiledSystem, compile_system
-from ncstab.systems.definition import (
-    DomainCondition,
-    GapDefinition,
-    InteractionFamily,
-    LoadDefinition,
-    SystemDefinition,
-    SystemUnits,
-    dof_symbols,
-)
-from ncstab.systems.diamond import DiamondChain
-from ncstab.systems.protocol import DiscreteSystem, conjugate_forces
-from ncstab.systems.registry import SYSTEMS, SystemKind, system_definition
+from __future__ import annotations
+
+from ncstab.lazy_imports import lazy_attributes
 
 __all__ = [
     "SYSTEMS",
@@ -41,3 +31,27 @@ __all__ = [
     "dof_symbols",
     "system_definition",
 ]
+
+#: Imported on first use, so that a submodule without sympy (the closed forms, which
+#: ``ncstab plot`` draws) does not import the symbolic layer with its package.
+__getattr__, __dir__ = lazy_attributes(
+    __name__,
+    {
+        "CompiledSystem": "ncstab.systems.compile",
+        "compile_system": "ncstab.systems.compile",
+        **{
+            name: "ncstab.systems.definition"
+            for name in (
+                "DomainCondition", "GapDefinition", "InteractionFamily", "LoadDefinition",
+                "SystemDefinition", "SystemUnits", "dof_symbols",
+            )
+        },
+        "DiamondChain": "ncstab.systems.diamond",
+        "DiscreteSystem": "ncstab.systems.protocol",
+        "conjugate_forces": "ncstab.systems.protocol",
+        "SYSTEMS": "ncstab.systems.registry",
+        "SystemKind": "ncstab.systems.registry",
+        "system_definition": "ncstab.systems.registry",
+    },
+    globals(),
+)

@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.optimize import brentq
 
 __all__ = [
     "PURE_SHEAR_MODELS",
@@ -187,6 +186,8 @@ def _turning_alpha_scalar(gamma: float, alpha0: float) -> float:
     a_min = float(np.arccos(1 / (2 * np.sqrt(gamma))))
     if a_min <= alpha0 or g(a_min) >= 0:
         return np.nan
+    from scipy.optimize import brentq  # imported here: ncstab plot need not pay for scipy.optimize
+
     return float(brentq(g, alpha0, a_min, xtol=1e-15, rtol=4 * np.finfo(float).eps, maxiter=200))
 
 
