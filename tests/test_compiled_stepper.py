@@ -703,3 +703,26 @@ def test_a_long_stage_grows_the_recorder_once_not_at_every_doubling(monkeypatch)
     alone = follow(IGNORE, "cundall_strack", programme, {"gamma": 1.0}, options).to_dataset()
     in_sweep = path.to_dataset()["u"].sel(gamma=1.0).values[0, : alone.sizes["step"]]
     np.testing.assert_array_equal(alone["u"].values[0], in_sweep)
+
+
+#: Turco, gamma = 2, F2* = 0 (the golden reduced stability diagram, tests/test_golden.py):
+#: at D1* = 0.5607 the path meets a singular point of its mixed control, where the
+#: cofactor tangent passes through zero and changes sign while the path goes on.
+SINGULAR = [{"hold": {"F1": 0.0}, "drive": {"F2": 0.0}}, {"hold": {"F2": "current"}, "drive": {"D1": 0.6}}]
+
+
+def test_the_tangent_is_oriented_by_continuity_across_a_singular_point_as_on_the_numpy_stepper():
+    """Each tangent continues the motion at the start of its step (tangent_field
+    ._continue_reference): across the singular point both steppers go straight on and
+    give the same case to the bit.  Without the continuity the compiled stepper crept
+    through it in smaller steps (the golden archive's 108 steps)."""
+    spec = SystemSpec(secondary_contacts="ignore")
+    parameters = {"gamma": [2.0]}
+    options = PathOptions(max_step=0.05)
+    reference = follow(spec, "turco", SINGULAR, parameters, numpy_stepper(options))
+    path = follow(spec, "turco", SINGULAR, parameters, compiled(options))
+    assert path.results[0].engine.startswith("compiled stepper")
+    assert reference.succeeded.all(), reference.message
+    d1 = reference.results[0].steps["u"][0, : int(reference.results[0].n_steps[0]), 0]
+    assert d1.max() == pytest.approx(0.6, abs=1e-12) and np.any(np.abs(d1 - 0.5607) < 0.05)  # it got across
+    assert_results_identical(reference.results[0], path.results[0])

@@ -17,8 +17,10 @@ from there; the direction of motion kept, as in
 :func:`ncstab.paths.contacts.switch_contacts`).  It differs from the numpy
 stepper at most by rounding (numpy may evaluate transcendental functions with
 SIMD code, numba with the C library), and its result for a case depends
-neither on the batch nor on the thread.  It does not orient the tangent by
-continuity with the previous step (:func:`ncstab.paths.tangent_field.path_tangent`).
+neither on the batch nor on the thread.  Like the numpy stepper it orients
+each tangent by continuity with the motion at the start of its step
+(:func:`ncstab.paths.tangent_field.path_tangent`), so both go straight on
+through a singular point of the control, step for step.
 
 What it does not cover runs on the numpy stepper (see
 :func:`unsupported_reason`): cycle stages, the pure-shear limit (``normal = "rigid"``) and general models.  Stage entry, the

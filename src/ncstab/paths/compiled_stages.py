@@ -78,7 +78,7 @@ class CompiledStages:
         self.starter(
             cases.astype(np.int64), stepper.y, stepper.derivative, stepper.indicators, stepper.arclength,
             stages.force_controlled, stages.slope, stages.lam_end, stages.target_sign, stages.orientation,
-            np.ascontiguousarray(stages.secondary_state, dtype=np.int64), self.law, self.parameters, self.cos0,
+            stages.reference, np.ascontiguousarray(stages.secondary_state, dtype=np.int64), self.law, self.parameters, self.cos0,
             self.sin0,
             stepper.stage_index[cases[0]] if cases.size else 0,
             tuple(recorder.arrays[name] for name in stepper.record_fields()), recorder.count,
@@ -113,7 +113,7 @@ class CompiledStages:
                     stepper.y, stepper.derivative, stepper.indicators,
                     stepper.step_size, stepper.arclength, stepper.accepted, stepper.rejected, stepper.located,
                     stages.force_controlled, stages.offset, stages.slope, stages.lam_end,
-                    stages.target_sign, stages.orientation, secondary_state,
+                    stages.target_sign, stages.orientation, stages.reference, secondary_state,
                     self.law, self.parameters, self.cos0, self.sin0, stepper.stop_table[k], stepper.break_columns,
                     event_columns,
                     found, values, stage, int(k), tuple(recorder.arrays[name] for name in fields),

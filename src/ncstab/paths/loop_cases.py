@@ -42,7 +42,7 @@ def cases_part(
 
     @numba.njit(cache=False, error_model="numpy", nogil=True)
     def run_cases(cases, y, derivative, indicator_table, step_size, arclength, accepted, rejected, located,
-                  force_controlled, offset, slope, lam_end, target_sign, orientation, secondary_state,
+                  force_controlled, offset, slope, lam_end, target_sign, orientation, reference, secondary_state,
                   law, parameters, cos0, sin0, stop_row, break_row, event_columns, event_found, event_values, event_stage,
                   stage_number, recorded, record_count, code, detail, rtol, atol, newton_tol,
                   newton_max_iter, min_step, max_step, max_steps, event_tol):
@@ -66,9 +66,11 @@ def cases_part(
         coefficients = np.empty((_POWER, M))
         located_states = np.empty((n_columns, M))
         ev = np.empty(17)
-        aux = np.empty(6)
+        aux = np.empty(11)
         ev_new = np.empty(17)
-        aux_new = np.empty(6)
+        aux_new = np.empty(11)
+        orient = np.empty(6)  # the orientation, then the reference (the motion at the step's start)
+        plain = np.full(6, np.nan)  # the orientation alone (contacts.switch_contacts sets the reference aside)
         values = np.empty(n_columns)
         after = np.empty(n_columns)
         before = np.empty(n_columns)
@@ -84,7 +86,9 @@ def cases_part(
             sec = secondary_state[i]
             p[state_slot] = sec
             c0, s0 = cos0[i], sin0[i]
-            orient = orientation[i]
+            orient[0] = orientation[i]
+            for k in range(5):
+                orient[1 + k] = reference[i, k]
             code[i] = Outcome_PAUSED
             while record_count[i] < capacity:
                 h = min(step_size[i], max_step)
@@ -193,15 +197,18 @@ def cases_part(
                     switching = break_row[cut_column]
                     kept = 0.0
                     if switching:  # _switch_contacts_at: the direction of motion is kept
-                        rhs(y_new, fc0, fc1, g0, g1, orient, law, p, c0, s0, work[2], ev, aux)
+                        plain[0] = orient[0]
+                        rhs(y_new, fc0, fc1, g0, g1, plain, law, p, c0, s0, work[2], ev, aux)
                         motion(ev, aux, motion_before)
                         sec = sec ^ switch_bits[cut_column]
                         p[state_slot] = sec
                         secondary_state[i] = sec
-                        rhs(y_new, fc0, fc1, g0, g1, orient, law, p, c0, s0, work[2], ev, aux)
+                        rhs(y_new, fc0, fc1, g0, g1, plain, law, p, c0, s0, work[2], ev, aux)
                         if motion_product(motion_before, ev, aux) < 0:
-                            orient = -orient
-                            orientation[i] = orient
+                            orient[0] = -orient[0]
+                            orientation[i] = orient[0]
+                        for k in range(5):  # the motion continues from the switch: no reference across it
+                            orient[1 + k] = np.nan
                         kept = after[cut_column]
                     rhs(y_new, fc0, fc1, g0, g1, orient, law, p, c0, s0, dy_new, ev_new, aux_new)
                     indicators(ev_new, aux_new, y_new[2], fc0, fc1, lam_end[i], target_sign[i],
@@ -214,6 +221,9 @@ def cases_part(
                     derivative[i, j] = dy_new[j]
                 arclength[i] += reach
                 accepted[i] += 1
+                for k in range(5):  # stepper._commit: the reference of the next step
+                    orient[1 + k] = aux_new[6 + k]
+                    reference[i, k] = aux_new[6 + k]
                 for c in range(n_columns):
                     indicator_table[i, c] = after[c]
                 store_record(recorded, i, record_count[i], arclength[i], stage_number, y_new, ev_new, aux_new)
@@ -255,21 +265,26 @@ def cases_part(
 
     @numba.njit(cache=False, error_model="numpy")
     def start(cases, y, derivative, indicator_table, arclength, force_controlled, slope, lam_end, target_sign,
-              orientation, secondary_state, law, parameters, cos0, sin0, stage_number, recorded, record_count,
+              orientation, reference, secondary_state, law, parameters, cos0, sin0, stage_number, recorded,
+              record_count,
               step_size, probe, rtol, atol):
         """Cases ``cases`` start their (set up) stage: dy/ds, indicators, state stored
         (stage_entry._start_stage); the first step where ``step_size`` is NaN
         (stage_entry._estimate_first_steps)."""
         state = np.empty(M)
         ev = np.empty(17)
-        aux = np.empty(6)
+        aux = np.empty(11)
         f1 = np.empty(M)
+        orient = np.empty(6)
         for i in cases:
+            orient[0] = orientation[i]
+            for k in range(5):
+                orient[1 + k] = reference[i, k]
             for j in range(M):
                 state[j] = y[i, j]
             fc0, fc1, g0, g1 = force_controlled[i, 0], force_controlled[i, 1], slope[i, 0], slope[i, 1]
             parameters[i, state_slot] = secondary_state[i]
-            rhs(state, fc0, fc1, g0, g1, orientation[i], law, parameters[i], cos0[i], sin0[i], derivative[i], ev, aux)
+            rhs(state, fc0, fc1, g0, g1, orient, law, parameters[i], cos0[i], sin0[i], derivative[i], ev, aux)
             indicators(ev, aux, state[2], fc0, fc1, lam_end[i], target_sign[i], secondary_state[i],
                        indicator_table[i])
             store_record(recorded, i, record_count[i], arclength[i], stage_number, state, ev, aux)
@@ -277,7 +292,7 @@ def cases_part(
             if np.isnan(step_size[i]):
                 for j in range(M):
                     state[j] = y[i, j] + probe * derivative[i, j]
-                rhs(state, fc0, fc1, g0, g1, orientation[i], law, parameters[i], cos0[i], sin0[i], f1, ev, aux)
+                rhs(state, fc0, fc1, g0, g1, orient, law, parameters[i], cos0[i], sin0[i], f1, ev, aux)
                 step_size[i] = initial_step_size(y[i], derivative[i], f1, probe, rtol, atol)
 
     return StageLoop(run_cases, start)

@@ -93,8 +93,12 @@ def model_part(rate_form: bool) -> None:
         return ev[1]
 
     @hot
-    def tangent(ev, fc0, fc1, g0, g1, orientation, aux):
-        # tangent_field._path_tangent_2 with du/dv = I, dF/dv = K: aux = (dv0, dv1, du0, du1, dlam, det_m)
+    def tangent(ev, fc0, fc1, g0, g1, orient, aux):
+        # tangent_field._path_tangent_2 with du/dv = I, dF/dv = K, then _continue_reference:
+        # orient = (the stage's orientation, the reference: the motion (du, dF, dlambda) at
+        # the start of the step, NaN for none); aux = (dv0, dv1, du0, du1, dlam, det_m, the
+        # motion du0, du1, dF0, dF1, dlam), the tangent flipped where its motion reverses
+        # the reference
         k00, k01, k10, k11 = ev[6], ev[7], ev[8], ev[9]
         m00 = k00 if fc0 else 1.0
         m01 = k01 if fc0 else 0.0
@@ -110,19 +114,34 @@ def model_part(rate_form: bool) -> None:
         norm = np.sqrt((du0 * du0 + du1 * du1) + (df0 * df0 + df1 * df1) + det_m * det_m)
         # (1 / norm) * orientation, as one division: orientation is +-1, so the
         # same number (one rounding), one operation shorter on the critical path
-        scale = orientation / norm if norm > 0 else np.nan
-        aux[0] = dv0 * scale
-        aux[1] = dv1 * scale
-        aux[2] = du0 * scale
-        aux[3] = du1 * scale
-        aux[4] = det_m * scale
+        scale = orient[0] / norm if norm > 0 else np.nan
+        m0, m1, m2, m3, m4 = du0 * scale, du1 * scale, df0 * scale, df1 * scale, det_m * scale
+        # tangent_field._continue_reference: flipped where the sum over the five, in order,
+        # over the reference's norm is negative: where the sum is, the reference being
+        # finite (a unit motion) and not zero; NaN (no reference) flips nothing
+        dot = m0 * orient[1] + m1 * orient[2] + m2 * orient[3] + m3 * orient[4] + m4 * orient[5]
+        if dot < 0:
+            aux[0] = -(dv0 * scale)
+            aux[1] = -(dv1 * scale)
+            m0, m1, m2, m3, m4 = -m0, -m1, -m2, -m3, -m4
+        else:
+            aux[0] = dv0 * scale
+            aux[1] = dv1 * scale
+        aux[2] = m0
+        aux[3] = m1
+        aux[4] = m4
         aux[5] = det_m
+        aux[6] = m0
+        aux[7] = m1
+        aux[8] = m2
+        aux[9] = m3
+        aux[10] = m4
 
-    def rhs_py(y, fc0, fc1, g0, g1, orientation, law, p, cos0, sin0, dy, ev, aux):
+    def rhs_py(y, fc0, fc1, g0, g1, orient, law, p, cos0, sin0, dy, ev, aux):
         # rhs.state_derivative: dy/ds = (dv, dlambda, dinternal, dW)
         t_in = y[3] if N_INT else 0.0
         evaluate(y[0], y[1], t_in, law, p, cos0, sin0, ev)
-        tangent(ev, fc0, fc1, g0, g1, orientation, aux)
+        tangent(ev, fc0, fc1, g0, g1, orient, aux)
         dy[0] = aux[0]
         dy[1] = aux[1]
         dy[2] = aux[4]

@@ -153,7 +153,7 @@ def steps_part(
         return False
 
     @njit
-    def dense_coefficients(y0, y_raw, h, fc0, fc1, g0, g1, orientation, law, p, cos0, sin0, stages,
+    def dense_coefficients(y0, y_raw, h, fc0, fc1, g0, g1, orient, law, p, cos0, sin0, stages,
                            coefficients, work, ev, aux):
         # integrator.dense_output (the three extra stages, unprojected)
         m = y0.size
@@ -162,7 +162,7 @@ def steps_part(
             combine(A[s], A_TERMS[s], A_COUNT[s], stages, sums)
             for j in range(m):
                 state[j] = y0[j] + sums[j] * h
-            rhs(state, fc0, fc1, g0, g1, orientation, law, p, cos0, sin0, stages[s], ev, aux)
+            rhs(state, fc0, fc1, g0, g1, orient, law, p, cos0, sin0, stages[s], ev, aux)
         for j in range(m):
             delta = y_raw[j] - y0[j]
             f_old, f_new = stages[0, j], stages[_STAGES, j]
@@ -185,7 +185,7 @@ def steps_part(
             out[j] = value + y0[j]
 
     @njit
-    def indicator_at(y, column, fc0, fc1, offset, slope, lam_end, target_sign, orientation, secondary, law, p,
+    def indicator_at(y, column, fc0, fc1, offset, slope, lam_end, target_sign, orient, secondary, law, p,
                      cos0, sin0, newton_tol, newton_max_iter, ev, aux, values):
         # crossings.locate_crossings.evaluate: project (total form), evaluate, one column.
         # Without a projection the target and the gaps are functions of y alone: the
@@ -201,7 +201,7 @@ def steps_part(
         else:
             evaluate(y[0], y[1], y[3] if N_INT else 0.0, law, p, cos0, sin0, ev)
         if column == turning_column:
-            tangent(ev, fc0, fc1, slope[0], slope[1], orientation, aux)
+            tangent(ev, fc0, fc1, slope[0], slope[1], orient, aux)
         else:
             aux[4] = np.nan
         indicators(ev, aux, y[2], fc0, fc1, lam_end, target_sign, secondary, values)
@@ -217,7 +217,7 @@ def steps_part(
 
     @njit
     def locate(column, h, phi0, phi1, y0, coefficients, fc0, fc1, offset, slope, lam_end, target_sign,
-               orientation, secondary, law, p, cos0, sin0, newton_tol, newton_max_iter, event_tol,
+               orient, secondary, law, p, cos0, sin0, newton_tol, newton_max_iter, event_tol,
                ev, aux, values, state):
         # events.locate_sign_changes, one pair: returns (sigma, lower, upper); state at sigma
         lower, upper = 0.0, h
@@ -235,7 +235,7 @@ def steps_part(
             if bisect:
                 candidate = 0.5 * (lower + upper)
             dense_value(y0, coefficients, candidate / h, state)
-            value = indicator_at(state, column, fc0, fc1, offset, slope, lam_end, target_sign, orientation,
+            value = indicator_at(state, column, fc0, fc1, offset, slope, lam_end, target_sign, orient,
                                  secondary, law, p, cos0, sin0, newton_tol, newton_max_iter, ev, aux, values)
             sigma = candidate
             a_side = sign(value) == sign(f_lower)
@@ -304,7 +304,7 @@ def steps_part(
         row[15] = ev[9]
 
     @njit
-    def dop853(y0, f0, h, rtol, atol, fc0, fc1, g0, g1, orientation, law, p, cos0, sin0, stages, y1, work, ev,
+    def dop853(y0, f0, h, rtol, atol, fc0, fc1, g0, g1, orient, law, p, cos0, sin0, stages, y1, work, ev,
                aux):
         # integrator.dop853_step; leaves ev, aux at the end state y1 (its last stage)
         state, sums = work[0], work[1]
@@ -314,9 +314,9 @@ def steps_part(
             combine(A[s], A_TERMS[s], A_COUNT[s], stages, sums)
             for j in range(M):
                 state[j] = y0[j] + sums[j] * h
-            rhs_hot(state, fc0, fc1, g0, g1, orientation, law, p, cos0, sin0, stages[s], ev, aux)
+            rhs_hot(state, fc0, fc1, g0, g1, orient, law, p, cos0, sin0, stages[s], ev, aux)
         combine(B, B_TERMS, B_COUNT, stages, sums)
         for j in range(M):
             y1[j] = y0[j] + h * sums[j]
-        rhs_hot(y1, fc0, fc1, g0, g1, orientation, law, p, cos0, sin0, stages[_STAGES], ev, aux)
+        rhs_hot(y1, fc0, fc1, g0, g1, orient, law, p, cos0, sin0, stages[_STAGES], ev, aux)
         return error_norm(y0, y1, h, rtol, atol, stages, work)
