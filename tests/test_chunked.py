@@ -13,6 +13,7 @@ batch it is followed in (``ncstab.paths.integrator.combine_stages``).  Only the
 from __future__ import annotations
 
 import builtins
+import multiprocessing.util
 import shutil
 import tempfile
 from pathlib import Path
@@ -234,7 +235,16 @@ def test_a_dask_run_writes_the_in_process_archive(study, reference, tmp_path, mo
         left = [p for p in scratch.iterdir() if not p.name.startswith("pymp-")]
         assert left == [], "the workers' scratch space is removed"
     finally:
-        shutil.rmtree(scratch, ignore_errors=True)
+        # The forkserver's pymp-* folder is multiprocessing's to remove at exit (removing
+        # it here made its finalizer print a FileNotFoundError traceback); the scratch
+        # folder goes after it (finalizers run by decreasing priority; pymp's is -100).
+        for entry in scratch.iterdir():
+            if entry.is_dir() and not entry.name.startswith("pymp-"):
+                shutil.rmtree(entry, ignore_errors=True)
+            elif not entry.is_dir():
+                entry.unlink()
+        multiprocessing.util.Finalize(None, shutil.rmtree, args=(str(scratch),), kwargs={"ignore_errors": True},
+                                      exitpriority=-101)
 
 
 def test_a_run_on_an_existing_scheduler_writes_the_in_process_archive(study, reference, tmp_path):
