@@ -393,14 +393,6 @@ def test_compiled_backend_takes_the_numpy_steps(law, name):
 
 FALLBACKS = {
     # name -> (system, law, programme, parameters, options, word the reason names)
-    "cycle": (
-        IGNORE,
-        "cundall_strack",
-        [{"cycle": {"center": [0.04, 0.02], "turns": 1, "direction": 1}}],
-        {"gamma": [0.5, 2.0], "alpha0": ALPHA0},
-        PathOptions(max_step=0.5),
-        "cycle",
-    ),
     "rigid": (
         SystemSpec(normal="rigid", secondary_contacts="ignore"),
         "mcnamara",
@@ -447,11 +439,13 @@ def test_the_dataset_records_which_engine_ran_each_law():
     assert list(parts) == laws
     for law in laws:
         assert parts[law] == f"compiled stepper (numba {numba.__version__}), numpy stepper for what it leaves"
-    cycle = [{"cycle": {"center": [0.04, 0.02], "turns": 1, "direction": 1}}]
-    on_cycles = follow(IGNORE, laws, cycle, grid, compiled(PathOptions(max_step=0.5)))
-    parts = dict(part.split(": ", 1) for part in on_cycles.to_dataset().attrs["engine"].split("; "))
-    for law in laws:
-        assert parts[law].startswith("numpy stepper (backend = 'compiled' asked: cycle stages"), parts[law]
+    rigid = SystemSpec(normal="rigid", secondary_contacts="ignore")
+    pure_shear = [{"hold": {"F2": 0.0}, "drive": {"F1": 1.0}}]
+    on_rigid = follow(rigid, ["mcnamara", "cundall_strack"], pure_shear, {"alpha0": [0.7, ALPHA0]},
+                      compiled(PathOptions()))
+    parts = dict(part.split(": ", 1) for part in on_rigid.to_dataset().attrs["engine"].split("; "))
+    for law in ("mcnamara", "cundall_strack"):
+        assert parts[law].startswith("numpy stepper (backend = 'compiled' asked: the pure-shear limit"), parts[law]
     assert follow(IGNORE, laws[0], UNIAXIAL, grid, numpy_stepper(PathOptions())).to_dataset().attrs[
         "engine"
     ] == "cundall_strack: numpy stepper"
@@ -725,4 +719,38 @@ def test_the_tangent_is_oriented_by_continuity_across_a_singular_point_as_on_the
     assert reference.succeeded.all(), reference.message
     d1 = reference.results[0].steps["u"][0, : int(reference.results[0].n_steps[0]), 0]
     assert d1.max() == pytest.approx(0.6, abs=1e-12) and np.any(np.abs(d1 - 0.5607) < 0.05)  # it got across
+    assert_results_identical(reference.results[0], path.results[0])
+
+
+#: Green's paradox on the compiled stepper: a linear stage, then two clockwise turns
+#: of a circle off the current state (the turn's end and the stage's target located
+#: as crossings), then one counterclockwise turn, secondary contacts switching
+#: where the circle meets them.
+CYCLES = [
+    {"hold": {"F2": 0.0}, "drive": {"D1": 0.05}},
+    {"cycle": {"center": [0.03, 0.0], "turns": 2, "direction": -1}},
+    {"cycle": {"center": [0.05, 0.04], "turns": 1, "direction": 1}},
+]
+
+
+@pytest.mark.parametrize("law", LAWS)
+@pytest.mark.parametrize("spec", [IGNORE, ACTIVATE], ids=["ignore", "activate"])
+def test_cycle_stages_run_compiled_as_on_the_numpy_stepper(law, spec):
+    """Cycle stages on the compiled stepper: the control path on the circle (projection,
+    tangent, event location), each turn closed where its crossing cuts the step and
+    its work, force gap and drift of T tabled -- the numpy stepper's result to the bit."""
+    from ncstab.paths.compiled import unsupported_reason
+
+    parameters = {"gamma": [0.5, 2.0], "alpha0": [0.6, ALPHA0]}
+    batch, parsed = batch_and_programme(spec, law, CYCLES, parameters)
+    assert unsupported_reason(batch, parsed) is None
+    options = PathOptions(max_step=0.2)
+    reference = follow(spec, law, CYCLES, parameters, numpy_stepper(options))
+    path = follow(spec, law, CYCLES, parameters, options)
+    assert path.results[0].engine.startswith("compiled stepper")
+    assert reference.succeeded.all(), reference.message
+    work = reference.results[0].cycles["work"]
+    assert work.shape == (4, 3) and np.isfinite(work).all()  # every turn closed and tabled
+    if spec is ACTIVATE:  # the second circle reaches the left-right contact for alpha0 = 0.6
+        assert reference.results[0].events["secondary_contact"]["found"].any()
     assert_results_identical(reference.results[0], path.results[0])

@@ -40,13 +40,13 @@ KNOWN_DIFFERENCES = {
     "stability_diagram_reduced": [{"law": "turco", "gamma": 2.0, "F2_lateral": 0.0}],
 }
 #: Studies whose laws the default engine runs on the numpy stepper, the archive
-#: saying why (the rigid normal, cycle stages); in the others every law runs on
-#: the compiled stepper (linear stages of the deformable reduced diamond,
-#: secondary contacts ignored or activated, no_tension laws too).
+#: saying why (the rigid normal); in the others every law runs on the compiled
+#: stepper (linear and cycle stages of the deformable reduced diamond, secondary
+#: contacts ignored or activated, no_tension laws too).
 #: The compiled stepper orients the tangent by continuity as the numpy stepper does,
 #: so on the known difference above it takes the numpy stepper's steps (104, against
 #: the golden's 108), bit for bit (tests/test_compiled_stepper.py).
-NUMPY_STEPPER = {"fig14_15_pure_shear_blocking", "green_paradox"}
+NUMPY_STEPPER = {"fig14_15_pure_shear_blocking"}
 #: The end states of a known difference agree to rounding (both paths are projected
 #: onto equilibrium to newton_tol = 1e-12).
 END_STATE_TOL = 1e-12

@@ -1,7 +1,7 @@
 """The compiled stepper: the engine's stepping loop as one numba loop per case.
 
 By default (``PathOptions(backend="auto")``, or ``"compiled"`` asked for) the
-linear stages of the deformable reduced diamond (the fused state kernel of
+linear and cycle stages of the deformable reduced diamond (the fused state kernel of
 :mod:`ncstab.operators.tangent`, seed Eq. 4 and 30-34) run through this module
 instead of the numpy passes of :class:`ncstab.paths.stepper.BatchStepper`, the
 cases of a stage shared out over threads (:mod:`ncstab.paths.threads`).
@@ -9,7 +9,9 @@ It takes the same steps: the same DOP853 tableau and error norm, the same
 step-size control, the same Newton projection onto equilibrium for laws with a
 total form, the same cofactor tangent of the constrained rate system, the same
 event indicators located by the same Illinois iteration on the same DOP853
-interpolant, the same cuts at stage targets, stop events and contact switches
+interpolant, the same control path (a line, or the circle of a cycle stage,
+whose turns close where their crossings cut the step and go into the
+stepper's cycle tables), the same cuts at stage targets, stop events and contact switches
 (``secondary_contacts = "activate"``: the spring switches where its gap
 crossing cuts the step; a ``no_tension`` law's normal contact opens or closes
 where its overlap crosses zero and the law's open or closed branch serves
@@ -23,7 +25,7 @@ each tangent by continuity with the motion at the start of its step
 through a singular point of the control, step for step.
 
 What it does not cover runs on the numpy stepper (see
-:func:`unsupported_reason`): cycle stages, the pure-shear limit (``normal = "rigid"``) and general models.  Stage entry, the
+:func:`unsupported_reason`): the pure-shear limit (``normal = "rigid"``) and general models.  Stage entry, the
 first stored state of a stage and the assembly of the result stay with the
 numpy stepper: this module runs each case from the start of a stage to its
 end (target, stop event or failure).
@@ -67,7 +69,6 @@ from ncstab.paths.events import (
     INDICATOR_EVENTS,
     INDICATOR_GAP,
 )
-from ncstab.paths.programme import CycleStage
 
 __all__ = [
     "EVENT_FIELDS",
@@ -156,8 +157,6 @@ def unsupported_reason(batch: Any, programme: Any) -> str | None:
         return "the pure-shear limit (normal = 'rigid') runs on the numpy stepper"
     if type(batch) is not CaseBatch:
         return "general models (any system but the seed's reduced diamond) run on the numpy stepper"
-    if any(isinstance(stage, CycleStage) for stage in programme.stages):
-        return "cycle stages run on the numpy stepper"
     kernels = batch._kernels
     if kernels is None or len(kernels) != (2 if batch.law.definition.no_tension else 1) or batch.n_dof != 2:
         return "this system has no fused state kernel; it runs on the numpy stepper"

@@ -15,7 +15,7 @@ compiled loop, which releases the GIL.
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
@@ -27,12 +27,30 @@ if TYPE_CHECKING:
     from ncstab.paths.model import CaseBatch
     from ncstab.paths.stepper import BatchStepper
 
-__all__ = ["STEPS_PER_CALL", "CompiledStages"]
+__all__ = ["STEPS_PER_CALL", "CompiledStages", "control_rows"]
 
 #: Room the recorder must have per case before a call, in states: a case
 #: whose steps fill the recorder pauses, the recorder grows (doubling) and
 #: the next call goes on from there.
 STEPS_PER_CALL = 1
+
+
+class _TurnEnd(NamedTuple):
+    """What :class:`~ncstab.paths.cycle_turns.CycleTurns` reads of the state where a turn
+    closes: F ``(B, 2)`` and T ``(B, 1)``."""
+
+    forces: np.ndarray
+    tangential: np.ndarray
+
+
+def control_rows(stages: Any) -> np.ndarray:
+    """Each case's control path as the loop reads it (``control`` of
+    :mod:`ncstab.paths.loop_model`): is_cycle, the offset and slope of g (two dofs),
+    then a cycle's centre, radius, theta0 and direction (``StageArrays.control_path``)."""
+    return np.ascontiguousarray(np.column_stack([
+        stages.is_cycle.astype(float), stages.offset, stages.slope, stages.center, stages.radius, stages.theta0,
+        stages.turn_direction.astype(float),
+    ]))
 
 
 class CompiledStages:
@@ -77,13 +95,19 @@ class CompiledStages:
         stages = stepper.stages
         self.starter(
             cases.astype(np.int64), stepper.y, stepper.derivative, stepper.indicators, stepper.arclength,
-            stages.force_controlled, stages.slope, stages.lam_end, stages.target_sign, stages.orientation,
-            stages.reference, np.ascontiguousarray(stages.secondary_state, dtype=np.int64), self.law, self.parameters, self.cos0,
-            self.sin0,
+            stages.force_controlled, control_rows(stages), stages.lam_end, stages.target_sign, stages.orientation,
+            stages.reference, np.ascontiguousarray(stages.secondary_state, dtype=np.int64), stages.cycles_done,
+            self.law, self.parameters, self.cos0, self.sin0,
             stepper.stage_index[cases[0]] if cases.size else 0,
             tuple(recorder.arrays[name] for name in stepper.record_fields()), recorder.count,
             stepper.step_size, stepper.probe_step, stepper.options.rtol, stepper.options.atol,
         )
+        cycling = cases[stages.is_cycle[cases]]
+        if cycling.size:  # stage_entry._start_stage: a turn starts (W, F and T there)
+            from ncstab.paths.rhs import evaluate_at
+
+            evaluation = evaluate_at(stepper.batch.take(cycling), stages.take(cycling), stepper.y[cycling], stepper.layout)
+            stepper.turns.start(cycling, stepper.y[cycling, stepper.layout.work], evaluation)
 
     def run(self, stepper: BatchStepper) -> None:
         """Run every running case of ``stepper`` to its end, stage by stage."""
@@ -98,6 +122,9 @@ class CompiledStages:
         found = np.ascontiguousarray(np.stack([stepper.events[name]["found"] for name in EVENTS]))
         values = np.empty((len(EVENTS), size, len(EVENT_FIELDS)))  # read where found only
         stage = np.stack([stepper.events[name]["stage"] for name in EVENTS]).astype(np.int64)
+        n_turns = int(stepper.turns.turns.sum())
+        turn_closed = np.zeros((size, n_turns), dtype=bool)
+        turn_values = np.empty((size, n_turns, 4))  # W, F1, F2, T where a turn closes
         while True:
             active = np.flatnonzero(stepper.status == RUNNING)
             if active.size == 0:
@@ -112,8 +139,10 @@ class CompiledStages:
                 arguments = (
                     stepper.y, stepper.derivative, stepper.indicators,
                     stepper.step_size, stepper.arclength, stepper.accepted, stepper.rejected, stepper.located,
-                    stages.force_controlled, stages.offset, stages.slope, stages.lam_end,
+                    stages.force_controlled, control_rows(stages), stages.lam_end,
                     stages.target_sign, stages.orientation, stages.reference, secondary_state,
+                    stages.cycles_done, int(stepper.turns.turns[k]), int(stepper.turns.first[k]),
+                    turn_closed, turn_values,
                     self.law, self.parameters, self.cos0, self.sin0, stepper.stop_table[k], stepper.break_columns,
                     event_columns,
                     found, values, stage, int(k), tuple(recorder.arrays[name] for name in fields),
@@ -123,6 +152,7 @@ class CompiledStages:
                     stepper.options.event_tol,
                 )
                 self._run_shared(cases.astype(np.int64), arguments)
+                self._close_turns(stepper, int(k), turn_closed, turn_values)
                 self._reserve_for_the_rest(stepper, cases, lam_before, count_before)
                 stages.secondary_state[cases] = secondary_state[cases]  # contacts switched in the loop
                 self._end(stepper, cases)
@@ -151,6 +181,21 @@ class CompiledStages:
         if rest.size:
             needed = count.max() + min(1.1 * rest.max() + 1, 16 * stepper.recorder.capacity)
             stepper.recorder.reserve(int(needed))
+
+    @staticmethod
+    def _close_turns(stepper: BatchStepper, k: int, closed: np.ndarray, values: np.ndarray) -> None:
+        """The turns of stage ``k`` the loop closed go into the stepper's cycle tables, in
+        order (:meth:`ncstab.paths.cycle_turns.CycleTurns.close`, as
+        stepper.BatchStepper._close_turns does)."""
+        first = int(stepper.turns.first[k])
+        for turn in range(int(stepper.turns.turns[k])):
+            cases = np.flatnonzero(closed[:, first + turn])
+            if cases.size == 0:
+                continue
+            row = values[cases, first + turn]
+            where = _TurnEnd(forces=row[:, 1:3], tangential=row[:, 3:4])
+            stepper.turns.close(cases, np.full(cases.size, k), np.full(cases.size, turn), row[:, 0], where)
+            closed[cases, first + turn] = False
 
     def _run_shared(self, cases: np.ndarray, arguments: tuple) -> None:
         """Run ``cases`` through the compiled loop, in strided shares on

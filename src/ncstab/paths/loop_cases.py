@@ -34,6 +34,7 @@ def cases_part(
 ) -> StageLoop:
     """Define ``run_cases`` and ``start`` and return them (a template: see the module docstring)."""
     half_pi = math.pi / 2
+    cycle_column = CYCLE_COLUMN
     cut_always = np.array([c in (TARGET_COLUMN, CYCLE_COLUMN) or BREAK_ALWAYS[c] for c in range(_N_COLUMNS)])
     switch_bits = np.array(INDICATOR_GAP, dtype=np.int64)
     Outcome_PAUSED, Outcome_TARGET, Outcome_STOPPED = Outcome.PAUSED, Outcome.TARGET, Outcome.STOPPED
@@ -42,12 +43,16 @@ def cases_part(
 
     @numba.njit(cache=False, error_model="numpy", nogil=True)
     def run_cases(cases, y, derivative, indicator_table, step_size, arclength, accepted, rejected, located,
-                  force_controlled, offset, slope, lam_end, target_sign, orientation, reference, secondary_state,
+                  force_controlled, control_rows, lam_end, target_sign, orientation, reference, secondary_state,
+                  cycles_done, turns, first_turn, turn_closed, turn_values,
                   law, parameters, cos0, sin0, stop_row, break_row, event_columns, event_found, event_values, event_stage,
                   stage_number, recorded, record_count, code, detail, rtol, atol, newton_tol,
                   newton_max_iter, min_step, max_step, max_steps, event_tol):
-        """Run cases ``cases`` through their current (linear) stage, one after the other;
-        see :class:`Outcome`.
+        """Run cases ``cases`` through their current stage (linear or cycle), one after the
+        other; see :class:`Outcome`.  ``control_rows``: each case's control path (see
+        ``control``); a turn of a cycle stage that closes sets ``turn_closed[i, first_turn
+        + turn]`` and stores (W, F1, F2, T) there in ``turn_values`` for the stepper's
+        tables (stepper.BatchStepper._close_turns).
 
         Mirrors one case's passes of stepper.BatchStepper: a DOP853 step (projected),
         the step-size control, the domain check, crossings located, the cut, the
@@ -81,7 +86,9 @@ def cases_part(
         motion_before = np.empty(5)
         for i in cases:
             fc0, fc1 = force_controlled[i, 0], force_controlled[i, 1]
-            g0, g1 = slope[i, 0], slope[i, 1]
+            ctl = control_rows[i]
+            done = cycles_done[i]
+            turn_end = 2 * np.pi * (done + 1) if ctl[0] > 0 else np.nan  # events: the cycle column
             p = parameters[i]
             sec = secondary_state[i]
             p[state_slot] = sec
@@ -94,12 +101,12 @@ def cases_part(
                 h = min(step_size[i], max_step)
                 for j in range(M):
                     y0[j] = y[i, j]
-                err = dop853(y0, derivative[i], h, rtol, atol, fc0, fc1, g0, g1, orient, law, p, c0, s0,
+                err = dop853(y0, derivative[i], h, rtol, atol, fc0, fc1, ctl, orient, law, p, c0, s0,
                              stages, y_raw, work, ev_new, aux_new)
                 for j in range(M):
                     y_new[j] = y_raw[j]
                 if not rate_form and np.isfinite(err) and not project(
-                    y_new, fc0, fc1, offset[i], slope[i], law, p, c0, s0, newton_tol, newton_max_iter, ev_new
+                    y_new, fc0, fc1, ctl, law, p, c0, s0, newton_tol, newton_max_iter, ev_new
                 ):
                     err = np.inf
                 accept = err <= 1.0
@@ -122,7 +129,7 @@ def cases_part(
                     for j in range(M):
                         dy_new[j] = stages[_STAGES, j]
                 else:
-                    rhs(y_new, fc0, fc1, g0, g1, orient, law, p, c0, s0, dy_new, ev_new, aux_new)
+                    rhs(y_new, fc0, fc1, ctl, orient, law, p, c0, s0, dy_new, ev_new, aux_new)
                 # --- _fail_outside_domain
                 finite = np.isfinite(ev_new[4]) and np.isfinite(ev_new[5])
                 for j in range(M):
@@ -132,7 +139,7 @@ def cases_part(
                     detail[i] = 0 if not finite else (1 if not (ev_new[0] > 0) else 2)
                     break
                 # --- _complete: indicators, crossings located, cut, events, commit
-                indicators(ev_new, aux_new, y_new[2], fc0, fc1, lam_end[i], target_sign[i],
+                indicators(ev_new, aux_new, y_new[2], fc0, fc1, lam_end[i], target_sign[i], turn_end,
                            sec, after)
                 any_change = False
                 for c in range(n_columns):
@@ -150,14 +157,14 @@ def cases_part(
                     for c in range(n_columns):
                         searched = searched or (change[c] and not (c == target_column and exact_target))
                     if searched:
-                        dense_coefficients(y0, y_raw, h, fc0, fc1, g0, g1, orient, law, p, c0, s0, stages,
+                        dense_coefficients(y0, y_raw, h, fc0, fc1, ctl, orient, law, p, c0, s0, stages,
                                            coefficients, work, ev, aux)
                     for c in range(n_columns):
                         if not change[c] or (c == target_column and exact_target):
                             continue
                         sigma[c], lower[c], upper[c] = locate(
-                            c, h, before[c], after[c], y0, coefficients, fc0, fc1, offset[i], slope[i],
-                            lam_end[i], target_sign[i], orient, sec, law, p, c0, s0,
+                            c, h, before[c], after[c], y0, coefficients, fc0, fc1, ctl,
+                            lam_end[i], target_sign[i], turn_end, orient, sec, law, p, c0, s0,
                             newton_tol, newton_max_iter, event_tol, ev, aux, values, located_states[c],
                         )
                         located[i] += 1
@@ -186,7 +193,7 @@ def cases_part(
                             best_column = c
                     if np.isfinite(best) and best <= reach + event_tol and not event_found[e, i]:
                         state = located_states[best_column]
-                        rhs(state, fc0, fc1, g0, g1, orient, law, p, c0, s0, work[2], ev, aux)
+                        rhs(state, fc0, fc1, ctl, orient, law, p, c0, s0, work[2], ev, aux)
                         event_found[e, i] = True
                         event_stage[e, i] = stage_number
                         store_event(event_values[e, i], arclength[i], sigma[best_column], lower[best_column],
@@ -198,20 +205,31 @@ def cases_part(
                     kept = 0.0
                     if switching:  # _switch_contacts_at: the direction of motion is kept
                         plain[0] = orient[0]
-                        rhs(y_new, fc0, fc1, g0, g1, plain, law, p, c0, s0, work[2], ev, aux)
+                        rhs(y_new, fc0, fc1, ctl, plain, law, p, c0, s0, work[2], ev, aux)
                         motion(ev, aux, motion_before)
                         sec = sec ^ switch_bits[cut_column]
                         p[state_slot] = sec
                         secondary_state[i] = sec
-                        rhs(y_new, fc0, fc1, g0, g1, plain, law, p, c0, s0, work[2], ev, aux)
+                        rhs(y_new, fc0, fc1, ctl, plain, law, p, c0, s0, work[2], ev, aux)
                         if motion_product(motion_before, ev, aux) < 0:
                             orient[0] = -orient[0]
                             orientation[i] = orient[0]
                         for k in range(5):  # the motion continues from the switch: no reference across it
                             orient[1 + k] = np.nan
                         kept = after[cut_column]
-                    rhs(y_new, fc0, fc1, g0, g1, orient, law, p, c0, s0, dy_new, ev_new, aux_new)
-                    indicators(ev_new, aux_new, y_new[2], fc0, fc1, lam_end[i], target_sign[i],
+                    rhs(y_new, fc0, fc1, ctl, orient, law, p, c0, s0, dy_new, ev_new, aux_new)
+                    closes_turn = cut_column == cycle_column or cut_column == target_column
+                    if ctl[0] > 0 and closes_turn and done < turns:  # _close_turns: W, F, T where it closes
+                        slot = first_turn + done
+                        turn_closed[i, slot] = True
+                        turn_values[i, slot, 0] = y_new[M - 1]
+                        turn_values[i, slot, 1] = ev_new[4]
+                        turn_values[i, slot, 2] = ev_new[5]
+                        turn_values[i, slot, 3] = ev_new[3]
+                        done += 1
+                        cycles_done[i] = done
+                        turn_end = 2 * np.pi * (done + 1)
+                    indicators(ev_new, aux_new, y_new[2], fc0, fc1, lam_end[i], target_sign[i], turn_end,
                                sec, after)
                     if switching:  # the post-crossing sign, so the crossing is not found twice
                         after[cut_column] = kept
@@ -264,10 +282,9 @@ def cases_part(
         return min(100 * probe, np.sqrt(np.sqrt(np.sqrt(0.01 / largest))))
 
     @numba.njit(cache=False, error_model="numpy")
-    def start(cases, y, derivative, indicator_table, arclength, force_controlled, slope, lam_end, target_sign,
-              orientation, reference, secondary_state, law, parameters, cos0, sin0, stage_number, recorded,
-              record_count,
-              step_size, probe, rtol, atol):
+    def start(cases, y, derivative, indicator_table, arclength, force_controlled, control_rows, lam_end,
+              target_sign, orientation, reference, secondary_state, cycles_done, law, parameters, cos0, sin0,
+              stage_number, recorded, record_count, step_size, probe, rtol, atol):
         """Cases ``cases`` start their (set up) stage: dy/ds, indicators, state stored
         (stage_entry._start_stage); the first step where ``step_size`` is NaN
         (stage_entry._estimate_first_steps)."""
@@ -282,17 +299,18 @@ def cases_part(
                 orient[1 + k] = reference[i, k]
             for j in range(M):
                 state[j] = y[i, j]
-            fc0, fc1, g0, g1 = force_controlled[i, 0], force_controlled[i, 1], slope[i, 0], slope[i, 1]
+            fc0, fc1, ctl = force_controlled[i, 0], force_controlled[i, 1], control_rows[i]
+            turn_end = 2 * np.pi * (cycles_done[i] + 1) if ctl[0] > 0 else np.nan
             parameters[i, state_slot] = secondary_state[i]
-            rhs(state, fc0, fc1, g0, g1, orient, law, parameters[i], cos0[i], sin0[i], derivative[i], ev, aux)
-            indicators(ev, aux, state[2], fc0, fc1, lam_end[i], target_sign[i], secondary_state[i],
+            rhs(state, fc0, fc1, ctl, orient, law, parameters[i], cos0[i], sin0[i], derivative[i], ev, aux)
+            indicators(ev, aux, state[2], fc0, fc1, lam_end[i], target_sign[i], turn_end, secondary_state[i],
                        indicator_table[i])
             store_record(recorded, i, record_count[i], arclength[i], stage_number, state, ev, aux)
             record_count[i] += 1
             if np.isnan(step_size[i]):
                 for j in range(M):
                     state[j] = y[i, j] + probe * derivative[i, j]
-                rhs(state, fc0, fc1, g0, g1, orient, law, parameters[i], cos0[i], sin0[i], f1, ev, aux)
+                rhs(state, fc0, fc1, ctl, orient, law, parameters[i], cos0[i], sin0[i], f1, ev, aux)
                 step_size[i] = initial_step_size(y[i], derivative[i], f1, probe, rtol, atol)
 
     return StageLoop(run_cases, start)

@@ -137,10 +137,23 @@ def model_part(rate_form: bool) -> None:
         aux[9] = m3
         aux[10] = m4
 
-    def rhs_py(y, fc0, fc1, g0, g1, orient, law, p, cos0, sin0, dy, ev, aux):
+    @hot
+    def control(lam, ctl):
+        # StageArrays.control_path, one case: (g0, g1, g0', g1') at lambda; ctl = (is_cycle,
+        # offset0, offset1, slope0, slope1, center0, center1, radius, theta0, turn_direction),
+        # a cycle's plane being both dofs of the diamond
+        if ctl[0] > 0:
+            angle = ctl[8] + ctl[9] * lam
+            cos, sin = np.cos(angle), np.sin(angle)
+            rate = ctl[7] * ctl[9]
+            return ctl[5] + ctl[7] * cos, ctl[6] + ctl[7] * sin, rate * -sin, rate * cos
+        return ctl[1] + ctl[3] * lam, ctl[2] + ctl[4] * lam, ctl[3], ctl[4]
+
+    def rhs_py(y, fc0, fc1, ctl, orient, law, p, cos0, sin0, dy, ev, aux):
         # rhs.state_derivative: dy/ds = (dv, dlambda, dinternal, dW)
         t_in = y[3] if N_INT else 0.0
         evaluate(y[0], y[1], t_in, law, p, cos0, sin0, ev)
+        _, _, g0, g1 = control(y[2], ctl)
         tangent(ev, fc0, fc1, g0, g1, orient, aux)
         dy[0] = aux[0]
         dy[1] = aux[1]
@@ -179,8 +192,8 @@ def model_part(rate_form: bool) -> None:
         return 0.0 if abs(value) <= sign_noise * size else value
 
     @njit
-    def indicators(ev, aux, lam, fc0, fc1, lam_end, target_sign, secondary, out):
-        # events.indicator_values (linear stage)
+    def indicators(ev, aux, lam, fc0, fc1, lam_end, target_sign, turn_end, secondary, out):
+        # events.indicator_values; turn_end: 2 pi (turns done + 1) in a cycle stage, else NaN
         k00, k01, k10, k11 = ev[6], ev[7], ev[8], ev[9]
         m00 = k00 if fc0 else 1.0
         m01 = k01 if fc0 else 0.0
@@ -208,7 +221,7 @@ def model_part(rate_form: bool) -> None:
         out[5] = signed_gap(ev[13], secondary, 2)
         out[6] = aux[4]
         out[7] = signed_gap(ev[16], secondary, 4)  # a no_tension law's normal overlap (NaN otherwise)
-        out[8] = np.nan
+        out[8] = lam - turn_end  # the end of the current turn (NaN outside a cycle stage)
         out[9] = target_indicator(lam, lam_end, target_sign)
 
     @njit

@@ -29,7 +29,7 @@ __all__ = ["steps_part"]
 
 
 def steps_part(
-    rate_form, M, N_INT, angle, evaluate, gap, hot, indicators, njit, rhs, rhs_hot, signed_gap, tangent,
+    rate_form, M, N_INT, angle, control, evaluate, gap, hot, indicators, njit, rhs, rhs_hot, signed_gap, tangent,
     target_indicator, tiny,
 ) -> None:
     """Define the step's helpers (a template: see the module docstring)."""
@@ -96,22 +96,21 @@ def steps_part(
         return max(a, b)
 
     @njit
-    def residual(ev, y, fc0, fc1, offset, slope):
+    def residual(ev, y, fc0, fc1, g0, g1):
         # StageArrays.residual: P u + Q F - g(lambda), max norm; returns (r0, r1, size)
-        lam = y[2]
-        r0 = (ev[4] if fc0 else y[0]) - (offset[0] + slope[0] * lam)
-        r1 = (ev[5] if fc1 else y[1]) - (offset[1] + slope[1] * lam)
+        r0 = (ev[4] if fc0 else y[0]) - g0
+        r1 = (ev[5] if fc1 else y[1]) - g1
         a0, a1 = abs(r0), abs(r1)
         size = np.nan if (np.isnan(a0) or np.isnan(a1)) else max(a0, a1)
         return r0, r1, size
 
     @njit
-    def project(y, fc0, fc1, offset, slope, law, p, cos0, sin0, newton_tol, newton_max_iter, ev):
+    def project(y, fc0, fc1, ctl, law, p, cos0, sin0, newton_tol, newton_max_iter, ev):
         # projection.project + _correction_2, one case; ev left at the final state
-        g0, g1 = slope[0], slope[1]
         for _ in range(newton_max_iter + 1):
             evaluate(y[0], y[1], y[3] if N_INT else 0.0, law, p, cos0, sin0, ev)
-            r0, r1, size = residual(ev, y, fc0, fc1, offset, slope)
+            path0, path1, g0, g1 = control(y[2], ctl)  # g and g' at this iteration's lambda
+            r0, r1, size = residual(ev, y, fc0, fc1, path0, path1)
             if size <= newton_tol:
                 return True
             if not np.isfinite(size):
@@ -153,7 +152,7 @@ def steps_part(
         return False
 
     @njit
-    def dense_coefficients(y0, y_raw, h, fc0, fc1, g0, g1, orient, law, p, cos0, sin0, stages,
+    def dense_coefficients(y0, y_raw, h, fc0, fc1, ctl, orient, law, p, cos0, sin0, stages,
                            coefficients, work, ev, aux):
         # integrator.dense_output (the three extra stages, unprojected)
         m = y0.size
@@ -162,7 +161,7 @@ def steps_part(
             combine(A[s], A_TERMS[s], A_COUNT[s], stages, sums)
             for j in range(m):
                 state[j] = y0[j] + sums[j] * h
-            rhs(state, fc0, fc1, g0, g1, orient, law, p, cos0, sin0, stages[s], ev, aux)
+            rhs(state, fc0, fc1, ctl, orient, law, p, cos0, sin0, stages[s], ev, aux)
         for j in range(m):
             delta = y_raw[j] - y0[j]
             f_old, f_new = stages[0, j], stages[_STAGES, j]
@@ -185,7 +184,7 @@ def steps_part(
             out[j] = value + y0[j]
 
     @njit
-    def indicator_at(y, column, fc0, fc1, offset, slope, lam_end, target_sign, orient, secondary, law, p,
+    def indicator_at(y, column, fc0, fc1, ctl, lam_end, target_sign, turn_end, orient, secondary, law, p,
                      cos0, sin0, newton_tol, newton_max_iter, ev, aux, values):
         # crossings.locate_crossings.evaluate: project (total form), evaluate, one column.
         # Without a projection the target and the gaps are functions of y alone: the
@@ -197,14 +196,15 @@ def steps_part(
         if rate_form and column == gap_columns[1]:
             return signed_gap(gap(sin0 - y[1]), secondary, 2)
         if not rate_form:
-            project(y, fc0, fc1, offset, slope, law, p, cos0, sin0, newton_tol, newton_max_iter, ev)
+            project(y, fc0, fc1, ctl, law, p, cos0, sin0, newton_tol, newton_max_iter, ev)
         else:
             evaluate(y[0], y[1], y[3] if N_INT else 0.0, law, p, cos0, sin0, ev)
         if column == turning_column:
-            tangent(ev, fc0, fc1, slope[0], slope[1], orient, aux)
+            _, _, g0, g1 = control(y[2], ctl)
+            tangent(ev, fc0, fc1, g0, g1, orient, aux)
         else:
             aux[4] = np.nan
-        indicators(ev, aux, y[2], fc0, fc1, lam_end, target_sign, secondary, values)
+        indicators(ev, aux, y[2], fc0, fc1, lam_end, target_sign, turn_end, secondary, values)
         return values[column]
 
     @njit
@@ -216,7 +216,7 @@ def steps_part(
         return x  # 0 or NaN
 
     @njit
-    def locate(column, h, phi0, phi1, y0, coefficients, fc0, fc1, offset, slope, lam_end, target_sign,
+    def locate(column, h, phi0, phi1, y0, coefficients, fc0, fc1, ctl, lam_end, target_sign, turn_end,
                orient, secondary, law, p, cos0, sin0, newton_tol, newton_max_iter, event_tol,
                ev, aux, values, state):
         # events.locate_sign_changes, one pair: returns (sigma, lower, upper); state at sigma
@@ -235,7 +235,7 @@ def steps_part(
             if bisect:
                 candidate = 0.5 * (lower + upper)
             dense_value(y0, coefficients, candidate / h, state)
-            value = indicator_at(state, column, fc0, fc1, offset, slope, lam_end, target_sign, orient,
+            value = indicator_at(state, column, fc0, fc1, ctl, lam_end, target_sign, turn_end, orient,
                                  secondary, law, p, cos0, sin0, newton_tol, newton_max_iter, ev, aux, values)
             sigma = candidate
             a_side = sign(value) == sign(f_lower)
@@ -304,7 +304,7 @@ def steps_part(
         row[15] = ev[9]
 
     @njit
-    def dop853(y0, f0, h, rtol, atol, fc0, fc1, g0, g1, orient, law, p, cos0, sin0, stages, y1, work, ev,
+    def dop853(y0, f0, h, rtol, atol, fc0, fc1, ctl, orient, law, p, cos0, sin0, stages, y1, work, ev,
                aux):
         # integrator.dop853_step; leaves ev, aux at the end state y1 (its last stage)
         state, sums = work[0], work[1]
@@ -314,9 +314,9 @@ def steps_part(
             combine(A[s], A_TERMS[s], A_COUNT[s], stages, sums)
             for j in range(M):
                 state[j] = y0[j] + sums[j] * h
-            rhs_hot(state, fc0, fc1, g0, g1, orient, law, p, cos0, sin0, stages[s], ev, aux)
+            rhs_hot(state, fc0, fc1, ctl, orient, law, p, cos0, sin0, stages[s], ev, aux)
         combine(B, B_TERMS, B_COUNT, stages, sums)
         for j in range(M):
             y1[j] = y0[j] + h * sums[j]
-        rhs_hot(y1, fc0, fc1, g0, g1, orient, law, p, cos0, sin0, stages[_STAGES], ev, aux)
+        rhs_hot(y1, fc0, fc1, ctl, orient, law, p, cos0, sin0, stages[_STAGES], ev, aux)
         return error_norm(y0, y1, h, rtol, atol, stages, work)
