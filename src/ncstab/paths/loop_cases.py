@@ -71,9 +71,9 @@ def cases_part(
         coefficients = np.empty((_POWER, M))
         located_states = np.empty((n_columns, M))
         ev = np.empty(17)
-        aux = np.empty(11)
+        aux = np.empty(8)
         ev_new = np.empty(17)
-        aux_new = np.empty(11)
+        aux_new = np.empty(8)
         orient = np.empty(6)  # the orientation, then the reference (the motion at the step's start)
         plain = np.full(6, np.nan)  # the orientation alone (contacts.switch_contacts sets the reference aside)
         values = np.empty(n_columns)
@@ -239,9 +239,12 @@ def cases_part(
                     derivative[i, j] = dy_new[j]
                 arclength[i] += reach
                 accepted[i] += 1
-                for k in range(5):  # stepper._commit: the reference of the next step
-                    orient[1 + k] = aux_new[6 + k]
-                    reference[i, k] = aux_new[6 + k]
+                # stepper._commit: the reference of the next step, the motion (du, dF, dlambda)
+                orient[1], orient[2], orient[3], orient[4], orient[5] = (
+                    aux_new[2], aux_new[3], aux_new[6], aux_new[7], aux_new[4]
+                )
+                for k in range(5):
+                    reference[i, k] = orient[1 + k]
                 for c in range(n_columns):
                     indicator_table[i, c] = after[c]
                 store_record(recorded, i, record_count[i], arclength[i], stage_number, y_new, ev_new, aux_new)
@@ -290,7 +293,7 @@ def cases_part(
         (stage_entry._estimate_first_steps)."""
         state = np.empty(M)
         ev = np.empty(17)
-        aux = np.empty(11)
+        aux = np.empty(8)
         f1 = np.empty(M)
         orient = np.empty(6)
         for i in cases:

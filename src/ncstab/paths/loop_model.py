@@ -96,9 +96,8 @@ def model_part(rate_form: bool) -> None:
     def tangent(ev, fc0, fc1, g0, g1, orient, aux):
         # tangent_field._path_tangent_2 with du/dv = I, dF/dv = K, then _continue_reference:
         # orient = (the stage's orientation, the reference: the motion (du, dF, dlambda) at
-        # the start of the step, NaN for none); aux = (dv0, dv1, du0, du1, dlam, det_m, the
-        # motion du0, du1, dF0, dF1, dlam), the tangent flipped where its motion reverses
-        # the reference
+        # the start of the step, NaN for none); aux = (dv0, dv1, du0, du1, dlam, det_m, dF0,
+        # dF1), the tangent flipped where its motion (du, dF, dlam) reverses the reference
         k00, k01, k10, k11 = ev[6], ev[7], ev[8], ev[9]
         m00 = k00 if fc0 else 1.0
         m01 = k01 if fc0 else 0.0
@@ -131,11 +130,8 @@ def model_part(rate_form: bool) -> None:
         aux[3] = m1
         aux[4] = m4
         aux[5] = det_m
-        aux[6] = m0
-        aux[7] = m1
-        aux[8] = m2
-        aux[9] = m3
-        aux[10] = m4
+        aux[6] = m2
+        aux[7] = m3
 
     @hot
     def control(lam, ctl):
