@@ -156,6 +156,9 @@ def _draw_one(dataset: xr.Dataset, name: str, target: Path, dpi: int) -> Path:
     temporary = target.parent / f".{target.name}.{os.getpid()}.{uuid.uuid4().hex[:12]}.tmp"
     try:
         with open(temporary, "xb") as stream, rc_context(RC_PARAMS):
+            # Laid out at the file's dpi: the text measured for the layout is the
+            # text rendered (mathtext is parsed once per string and dpi).
+            figure.set_dpi(dpi)
             _fix_layout(figure)
             width, height = figure.get_size_inches() * dpi
             # Large figures (many panels) compressed faster: a quarter of their drawing time saved
@@ -167,8 +170,8 @@ def _draw_one(dataset: xr.Dataset, name: str, target: Path, dpi: int) -> Path:
         if os.path.exists(temporary):
             os.unlink(temporary)
         raise
-    finally:
-        figure.clear()
+    # No ``figure.clear()``: a plain Figure (no pyplot) is freed with its last
+    # reference, and clearing it would rebuild every axes (a seventh of the drawing).
     return target
 
 
