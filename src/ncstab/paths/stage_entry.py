@@ -256,7 +256,7 @@ def _start_stage(stepper: BatchStepper, index: np.ndarray) -> None:
     if stepper.compiled is not None:  # no cycle stage there: no turn to start
         stepper.compiled.start(stepper, index)  # estimates the first steps too
         return
-    from ncstab.paths.stepper import indicators_at
+    from ncstab.paths.accepted_steps import indicators_at
 
     batch, stage, y = _batch_of(stepper, index), stepper.stages.take(index), stepper.y[index]
     dy, aux = state_derivative(batch, stage, y, stepper.layout)

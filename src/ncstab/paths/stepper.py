@@ -18,85 +18,27 @@ accepted step, located by root finding on the step length
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Callable
+from typing import Any, Callable
 
 import numpy as np
 
 from ncstab.paths import stage_entry
-from ncstab.paths.case_result import NUMPY_ENGINE, CaseResult, as_strings, empty_events
-from ncstab.paths.contacts import switch_contacts
+from ncstab.paths.accepted_steps import AcceptedSteps, indicators_at
+from ncstab.paths.case_result import CaseResult, as_strings, empty_events
 from ncstab.paths.crossings import event_tables, locate_crossings, store_first_events
+from ncstab.paths.cut_points import cut_points, drop_limit_points_at_bifurcations, move_to_cut_points
 from ncstab.paths.cycle_turns import CycleTurns
-from ncstab.paths.events import indicator_values
+from ncstab.paths.engine_choice import choose_engine
 from ncstab.paths.integrator import END_STAGE, step_factor
 from ncstab.paths.options import AUTO, PathOptions
 from ncstab.paths.programme import LoadingProgramme
 from ncstab.paths.projection import advance
 from ncstab.paths.recorder import Recorder
-from ncstab.paths.rhs import Auxiliary, StateLayout, evaluate_at, state_derivative
+from ncstab.paths.rhs import Auxiliary, StateLayout, state_derivative
 from ncstab.paths.status import FINISHED, RUNNING, failed, stopped
 from ncstab.paths.tangent_field import StageArrays
 
-if TYPE_CHECKING:
-    from ncstab.paths.compiled_stages import CompiledStages
-
 __all__ = ["BatchStepper", "follow_cases"]
-
-
-def indicators_at(batch: Any, stage: StageArrays, y: np.ndarray, aux: Auxiliary, layout: StateLayout) -> np.ndarray:
-    """Every indicator column of the batch at the states ``y`` (with ``aux`` there)."""
-    return indicator_values(
-        aux.evaluation, stage, y[:, layout.lam], aux.dlam, layout=batch.columns, branch=aux.tangent.branch
-    )
-
-
-@dataclass
-class AcceptedSteps:
-    """The accepted steps of one pass of the stepper, one row per case.
-
-    Attributes
-    ----------
-    cases
-        ``(A,)`` the rows' case indices in the batch.
-    batch, stage
-        The rows' cases and stage arrays (``stage`` is a copy, changed in place
-        where contacts switch or turns close).
-    y_start, h
-        States at the start of the step and step lengths.
-    y_raw, dop853_stages
-        DOP853 end states before the Newton projection and the stage
-        derivatives ``(stages, A, m)`` (for dense output).
-    y_new
-        States at the end of the step, then at the cut point where a step is cut.
-    dy_new, aux
-        dy/ds and the auxiliary quantities at ``y_new``.
-    """
-
-    cases: np.ndarray
-    batch: Any
-    stage: StageArrays
-    y_start: np.ndarray
-    h: np.ndarray
-    y_raw: np.ndarray
-    dop853_stages: np.ndarray
-    y_new: np.ndarray
-    dy_new: np.ndarray | None = None
-    aux: Auxiliary | None = None
-
-    def take(self, rows: np.ndarray) -> AcceptedSteps:
-        return AcceptedSteps(
-            self.cases[rows],
-            self.batch.take(rows),
-            self.stage.take(rows),
-            self.y_start[rows],
-            self.h[rows],
-            self.y_raw[rows],
-            self.dop853_stages[:, rows],
-            self.y_new[rows],
-            None if self.dy_new is None else self.dy_new[rows],
-            None if self.aux is None else self.aux.take(rows),
-        )
 
 
 class BatchStepper:
@@ -174,7 +116,7 @@ class BatchStepper:
         #: Per case: 0 on the path followed from the start, +-1 once it has left along a
         #: bifurcating branch that way (stored with every state of a general model).
         self.branch_index = np.zeros(size, dtype=int)
-        self.compiled, self.engine = _compiled_stepper(batch, programme, options)
+        self.compiled, self.engine = choose_engine(batch, programme, options)
 
     @property
     def probe_step(self) -> float:
@@ -362,8 +304,8 @@ class BatchStepper:
             steps.y_new, steps.h, steps.dop853_stages, self.layout, self.options,
         )
         self.located[steps.cases] += crossings.located
-        self._not_a_limit_point(crossings, steps.h)
-        is_cut, cut_column, reach = self._cut_points(steps, change, crossings.sigma)
+        drop_limit_points_at_bifurcations(self, crossings, steps.h)
+        is_cut, cut_column, reach = cut_points(self, steps, change, crossings.sigma)
         store_first_events(
             self.events, self.event_column, steps.cases, crossings, reach + self.options.event_tol,
             self.arclength, self.stage_index, steps.batch, steps.stage, self.layout,
@@ -371,151 +313,9 @@ class BatchStepper:
         cut_rows = np.flatnonzero(is_cut)
         steps.y_new = steps.y_new.copy()
         if cut_rows.size:
-            self._move_to_cut_points(steps, crossings, cut_rows, cut_column, indicators)
+            move_to_cut_points(self, steps, crossings, cut_rows, cut_column, indicators)
         self._commit(steps, reach, indicators)
         self._end_stages(steps.cases, is_cut, cut_column, indicators)
-
-    def _not_a_limit_point(self, crossings: Any, h: np.ndarray) -> None:
-        """A zero of det K where the branch test also changes sign is a simple bifurcation
-        point, not a limit point: its det K crossing is dropped (in ``crossings``).
-
-        The two roots are located independently to event_tol; they count as one
-        point within 1e-6 of the step (a limit point that close to a
-        bifurcation is not generic).
-        """
-        column = self.columns.bifurcation
-        if column is None:
-            return
-        branch = crossings.sigma[:, column]
-        for limit in self.event_column["limit_point"]:
-            with np.errstate(invalid="ignore"):
-                same = np.isfinite(branch) & (np.abs(crossings.sigma[:, limit] - branch) <= 1e-6 * h)
-            crossings.sigma[same, limit] = np.inf
-
-    def _cut_points(
-        self, steps: AcceptedSteps, change: np.ndarray, sigma: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Where each step is cut: at its first crossing that ends the stage or the case.
-
-        The crossings that cut are those of the target and cycle columns, of
-        stop events and of contact switches.  Returns the mask of the cut
-        steps, the column that cuts each step and the step length kept (to the
-        cut point, else the whole step).
-        """
-        stops = self.stop_table[self.stage_index[steps.cases]]
-        cutting = change & (stops | self.break_columns[None, :])
-        if self.columns.bifurcation is not None:  # a pending branch switch cuts the step there
-            pending = (steps.stage.switch != 0) & ~steps.stage.switched
-            cutting[:, self.columns.bifurcation] |= change[:, self.columns.bifurcation] & pending
-        cutting[:, self.columns.target] = change[:, self.columns.target]
-        cutting[:, self.columns.cycle] = change[:, self.columns.cycle]
-        cut_sigma = np.where(cutting, sigma, np.inf)
-        cut_column = np.argmin(cut_sigma, axis=1)
-        rows = np.arange(steps.cases.size)
-        is_cut = np.isfinite(cut_sigma[rows, cut_column])
-        reach = np.where(is_cut, cut_sigma[rows, cut_column], steps.h)
-        return is_cut, cut_column, reach
-
-    def _move_to_cut_points(
-        self,
-        steps: AcceptedSteps,
-        crossings: Any,
-        cut_rows: np.ndarray,
-        cut_column: np.ndarray,
-        indicators: np.ndarray,
-    ) -> None:
-        """The steps ``cut_rows`` end at their located cut points instead (in ``steps``).
-
-        Contacts switch and cycle turns close there; dy/ds, the auxiliary
-        quantities and the ``indicators`` are updated to the cut states.
-        """
-        steps.y_new[cut_rows] = crossings.located_y(cut_rows, cut_column[cut_rows])
-        closing = cut_rows[self.break_columns[cut_column[cut_rows]]]
-        if closing.size:
-            self._switch_contacts_at(steps, closing, cut_column)
-        if self.columns.bifurcation is not None:
-            leaving = cut_rows[(cut_column[cut_rows] == self.columns.bifurcation) & (steps.stage.switch[cut_rows] != 0)]
-            if leaving.size:
-                self._switch_branches_at(steps, leaving)
-        self._close_turns(steps, cut_rows, cut_column)
-        batch, stage = steps.batch.take(cut_rows), steps.stage.take(cut_rows)
-        dy_cut, aux_cut = state_derivative(batch, stage, steps.y_new[cut_rows], self.layout)
-        steps.dy_new[cut_rows] = dy_cut
-        indicators_cut = indicators_at(batch, stage, steps.y_new[cut_rows], aux_cut, self.layout)
-        # Keep the post-crossing sign of a break column (secondary contact)
-        # so the same crossing is not detected twice.
-        column_cut = cut_column[cut_rows]
-        brk = np.flatnonzero(self.break_columns[column_cut])
-        indicators_cut[brk, column_cut[brk]] = indicators[cut_rows[brk], column_cut[brk]]
-        indicators[cut_rows] = indicators_cut
-        # Writable copies (fields may be read-only views).
-        steps.aux = steps.aux.take(np.arange(steps.cases.size))
-        steps.aux.put(cut_rows, aux_cut)
-
-    def _switch_contacts_at(self, steps: AcceptedSteps, closing: np.ndarray, cut_column: np.ndarray) -> None:
-        """Switch the contact state of rows ``closing``, cut at a break column.
-
-        The direction of motion is kept: the orientation flips where the
-        switch flips the cofactor tangent.
-        """
-        bits = np.asarray(self.columns.switch_bits)[cut_column[closing]]
-        switched = steps.stage.take(closing)
-        steps.y_new[closing], flip = switch_contacts(
-            steps.batch.take(closing), switched, steps.y_new[closing], bits, self.layout
-        )
-        steps.stage.secondary_state[closing] = switched.secondary_state
-        self.stages.secondary_state[steps.cases[closing]] = switched.secondary_state
-        steps.stage.orientation[closing[flip]] *= -1
-        self.stages.orientation[steps.cases[closing[flip]]] *= -1
-        # The motion continues from the switch: no reference across it.
-        steps.stage.reference[closing] = np.nan
-
-    def _switch_branches_at(self, steps: AcceptedSteps, rows: np.ndarray) -> None:
-        """Rows ``rows`` are cut at a simple bifurcation point with a switch pending: they
-        leave along the bifurcating branch (:func:`ncstab.paths.branch_switching.switch_branch`),
-        the motion there becoming the reference the next tangents continue."""
-        from ncstab.paths.branch_switching import switch_branch
-
-        batch, stage = steps.batch.take(rows), steps.stage.take(rows)
-        incoming = np.concatenate([steps.aux.dv[rows], steps.aux.dlam[rows, None]], axis=-1)
-        sense = stage.switch.astype(float)
-        moved, direction = switch_branch(batch, stage, steps.y_new[rows], incoming, sense, self.layout, self.options)
-        steps.y_new[rows] = moved
-        evaluation = evaluate_at(batch, stage, moved, self.layout)
-        dv, dlam = direction[:, :-1], direction[:, -1]
-        du = np.einsum("bij,bj->bi", evaluation.du_dv, dv)
-        dF = np.einsum("bij,bj->bi", evaluation.dF_dv, dv)
-        if evaluation.dF_dload is not None:
-            dF = dF + evaluation.dF_dload * (stage.load_slope * dlam)[:, None]
-        motion = np.concatenate([du, dF, dlam[:, None]], axis=-1)
-        steps.stage.reference[rows] = motion
-        steps.stage.switched[rows] = True
-        self.stages.switched[steps.cases[rows]] = True
-        self.branch_index[steps.cases[rows]] = stage.switch
-
-    def _close_turns(self, steps: AcceptedSteps, cut_rows: np.ndarray, cut_column: np.ndarray) -> None:
-        """Close a turn where a cycle stage's step is cut at its cycle (or target) column.
-
-        Stores the work over the turn, the force gap and the drift of T, and
-        counts the turn.
-        """
-        column_cut = cut_column[cut_rows]
-        turns_here = self.turns.turns[self.stage_index[steps.cases[cut_rows]]]
-        ends_turn = (
-            ((column_cut == self.columns.cycle) | (column_cut == self.columns.target))
-            & steps.stage.is_cycle[cut_rows]
-            & (steps.stage.cycles_done[cut_rows] < turns_here)
-        )
-        rows = cut_rows[ends_turn]
-        if rows.size == 0:
-            return
-        _, aux = state_derivative(steps.batch.take(rows), steps.stage.take(rows), steps.y_new[rows], self.layout)
-        cases = steps.cases[rows]
-        turn = steps.stage.cycles_done[rows]
-        work = steps.y_new[rows, self.layout.work]
-        self.turns.close(cases, self.stage_index[cases], turn, work, aux.evaluation)
-        steps.stage.cycles_done[rows] += 1
-        self.stages.cycles_done[cases] += 1
 
     def _commit(self, steps: AcceptedSteps, reach: np.ndarray, indicators: np.ndarray) -> None:
         """The cases move to ``steps.y_new`` (arclength + ``reach``) and store it."""
@@ -572,34 +372,6 @@ class BatchStepper:
             for k in np.unique(finished_index):
                 stage_entry.enter(self, cases[finished_index == k], int(k) + 1)
 
-
-
-def _compiled_stepper(
-    batch: Any, programme: LoadingProgramme, options: PathOptions
-) -> tuple[CompiledStages | None, str]:
-    """The compiled stage loop where ``options.backend`` asks for it and it applies,
-    and the engine that runs the batch, in words (the archive's ``engine`` attribute).
-
-    Raises RuntimeError (from :func:`ncstab.paths.compiled.stage_runner`) when
-    the compiled backend is asked for and numba is missing.
-    """
-    if options.backend == "numpy":
-        return None, NUMPY_ENGINE
-    from ncstab.paths import compiled
-
-    asked = options.backend == "compiled"
-    if not compiled.NUMBA_AVAILABLE:
-        if asked:
-            compiled.stage_runner(batch)  # raises, naming what to install
-        return None, f"{NUMPY_ENGINE} (numba is not installed)"
-    reason = compiled.unsupported_reason(batch, programme)
-    if reason is not None:
-        because = "backend = 'compiled' asked" if asked else "the compiled stepper does not cover this"
-        return None, f"{NUMPY_ENGINE} ({because}: {reason})"
-    from ncstab.paths.compiled_stages import CompiledStages
-
-    engine = f"compiled stepper (numba {compiled.numba.__version__}), numpy stepper for what it leaves"
-    return CompiledStages(batch, compiled.stage_runner(batch)), engine
 
 
 def follow_cases(

@@ -1,0 +1,47 @@
+"""Which stepper runs a batch: the compiled stage loop where it applies, else the numpy stepper.
+
+The choice follows ``options.backend`` (``"auto"``, ``"compiled"``, ``"numpy"``)
+and what the compiled loop covers (:func:`ncstab.paths.compiled.unsupported_reason`);
+the engine that ran, in words, is the archive's ``engine`` attribute.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+from ncstab.paths.case_result import NUMPY_ENGINE
+from ncstab.paths.options import PathOptions
+from ncstab.paths.programme import LoadingProgramme
+
+if TYPE_CHECKING:
+    from ncstab.paths.compiled_stages import CompiledStages
+
+__all__ = ["choose_engine"]
+
+
+def choose_engine(
+    batch: Any, programme: LoadingProgramme, options: PathOptions
+) -> tuple[CompiledStages | None, str]:
+    """The compiled stage loop where ``options.backend`` asks for it and it applies,
+    and the engine that runs the batch, in words (the archive's ``engine`` attribute).
+
+    Raises RuntimeError (from :func:`ncstab.paths.compiled.stage_runner`) when
+    the compiled backend is asked for and numba is missing.
+    """
+    if options.backend == "numpy":
+        return None, NUMPY_ENGINE
+    from ncstab.paths import compiled
+
+    asked = options.backend == "compiled"
+    if not compiled.NUMBA_AVAILABLE:
+        if asked:
+            compiled.stage_runner(batch)  # raises, naming what to install
+        return None, f"{NUMPY_ENGINE} (numba is not installed)"
+    reason = compiled.unsupported_reason(batch, programme)
+    if reason is not None:
+        because = "backend = 'compiled' asked" if asked else "the compiled stepper does not cover this"
+        return None, f"{NUMPY_ENGINE} ({because}: {reason})"
+    from ncstab.paths.compiled_stages import CompiledStages
+
+    engine = f"compiled stepper (numba {compiled.numba.__version__}), numpy stepper for what it leaves"
+    return CompiledStages(batch, compiled.stage_runner(batch)), engine
