@@ -186,7 +186,7 @@ class CompiledStages:
     def _close_turns(stepper: BatchStepper, k: int, closed: np.ndarray, values: np.ndarray) -> None:
         """The turns of stage ``k`` the loop closed go into the stepper's cycle tables, in
         order (:meth:`ncstab.paths.cycle_turns.CycleTurns.close`, as
-        stepper.BatchStepper._close_turns does)."""
+        cut_points.close_turns does)."""
         first = int(stepper.turns.first[k])
         for turn in range(int(stepper.turns.turns[k])):
             cases = np.flatnonzero(closed[:, first + turn])

@@ -52,7 +52,7 @@ def cases_part(
         other; see :class:`Outcome`.  ``control_rows``: each case's control path (see
         ``control``); a turn of a cycle stage that closes sets ``turn_closed[i, first_turn
         + turn]`` and stores (W, F1, F2, T) there in ``turn_values`` for the stepper's
-        tables (stepper.BatchStepper._close_turns).
+        tables (cut_points.close_turns).
 
         Mirrors one case's passes of stepper.BatchStepper: a DOP853 step (projected),
         the step-size control, the domain check, crossings located, the cut, the
@@ -172,7 +172,7 @@ def cases_part(
                         sigma[target_column] = lower[target_column] = upper[target_column] = h
                         for j in range(M):
                             located_states[target_column, j] = y_new[j]
-                # _cut_points: the target, stop events (and contact switches, none here)
+                # cut_points.cut_points: the target, the end of a turn, stop events, contact switches
                 cut_column = 0
                 cut_sigma = np.inf
                 for c in range(n_columns):
@@ -198,12 +198,12 @@ def cases_part(
                         event_stage[e, i] = stage_number
                         store_event(event_values[e, i], arclength[i], sigma[best_column], lower[best_column],
                                     upper[best_column], state, ev)
-                if is_cut:  # _move_to_cut_points
+                if is_cut:  # cut_points.move_to_cut_points
                     for j in range(M):
                         y_new[j] = located_states[cut_column, j]
                     switching = break_row[cut_column]
                     kept = 0.0
-                    if switching:  # _switch_contacts_at: the direction of motion is kept
+                    if switching:  # cut_points.switch_contacts_at: the direction of motion is kept
                         plain[0] = orient[0]
                         rhs(y_new, fc0, fc1, ctl, plain, law, p, c0, s0, work[2], ev, aux)
                         motion(ev, aux, motion_before)
@@ -219,7 +219,7 @@ def cases_part(
                         kept = after[cut_column]
                     rhs(y_new, fc0, fc1, ctl, orient, law, p, c0, s0, dy_new, ev_new, aux_new)
                     closes_turn = cut_column == cycle_column or cut_column == target_column
-                    if ctl[0] > 0 and closes_turn and done < turns:  # _close_turns: W, F, T where it closes
+                    if ctl[0] > 0 and closes_turn and done < turns:  # cut_points.close_turns: W, F, T where it closes
                         slot = first_turn + done
                         turn_closed[i, slot] = True
                         turn_values[i, slot, 0] = y_new[M - 1]
