@@ -267,8 +267,12 @@ def test_the_cli_streams_a_study_larger_than_a_chunk_without_flags(
 ):
     """More cases per law than one chunk: streamed (never all in memory), same archive."""
     import ncstab.studies as studies_package
+    import ncstab.studies.chunk_plan as chunk_plan
 
-    monkeypatch.setattr(chunked_module, "DEFAULT_CHUNK_CASES", CHUNK_CASES)  # 12 cases per law > 5
+    monkeypatch.setattr(chunk_plan, "DEFAULT_CHUNK_CASES", CHUNK_CASES)  # 12 cases per law > 5
+    chunks = []
+    original = chunked_module.run_chunk
+    monkeypatch.setattr(chunked_module, "run_chunk", lambda *a: chunks.append(a[2:]) or original(*a))
 
     def in_memory(*args, **kwargs):
         raise AssertionError("a study larger than a chunk must not be run in memory")
@@ -280,6 +284,7 @@ def test_the_cli_streams_a_study_larger_than_a_chunk_without_flags(
     output = tmp_path / "out" / "chunks.nc"
     assert main(["run", str(study_file), "-q", "-o", str(output)]) == 0
     assert "cases: 24" in capsys.readouterr().out
+    assert len(chunks) > len(study.laws), "each law's cases in more than one chunk"
     for figure in output.parent.glob("*.png"):
         figure.unlink()
     assert_same_archive(output, reference)

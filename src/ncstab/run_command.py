@@ -23,7 +23,7 @@ def _study_output(study, args: argparse.Namespace) -> Path:
 
 
 def _runs_in_chunks(study, args: argparse.Namespace) -> bool:
-    from ncstab.studies.chunked import DEFAULT_CHUNK_CASES, study_cases
+    from ncstab.studies.chunk_plan import DEFAULT_CHUNK_CASES, study_cases
 
     flags = args.chunk_cases is not None or args.resume or args.workers is not None or args.scheduler is not None
     return flags or study_cases(study) > DEFAULT_CHUNK_CASES
