@@ -69,11 +69,12 @@ def test_the_root_is_ncstab_cache_dir_else_xdg_cache_home_else_home(tmp_path, mo
 
 
 def test_every_cache_of_ncstab_is_a_registered_kind_and_no_other_is_accepted():
+    from ncstab.operators import kernel_cache
     from ncstab.paths import compiled_source
     from ncstab.studies.verification import VALID_STUDIES_KIND
     from ncstab.symbolic.class_cache import CACHE_KIND
 
-    assert set(CACHE_KINDS) == {compiled_source.CACHE_KIND, CACHE_KIND, VALID_STUDIES_KIND}
+    assert set(CACHE_KINDS) == {compiled_source.CACHE_KIND, CACHE_KIND, VALID_STUDIES_KIND, kernel_cache.CACHE_KIND}
     with pytest.raises(ValueError, match="unknown cache 'loops'"):
         cache_directory("loops")
 
@@ -91,8 +92,8 @@ def test_the_compiled_loops_are_written_under_the_root(tmp_path, monkeypatch):
         assert re.fullmatch(r"ncstab_stage_loop_[0-9a-f]+\.py", path.name), path.name
         # the module, and its bytecode where Python writes it (PYTHONDONTWRITEBYTECODE unset)
         usage = [(u.kind, u.files) for u in cache_usage()]
-        assert usage in ([("compiled", 1), ("law_classes", 0), ("valid_studies", 0)],
-                         [("compiled", 2), ("law_classes", 0), ("valid_studies", 0)]), usage
+        others = [("law_classes", 0), ("state_kernels", 0), ("valid_studies", 0)]
+        assert usage in ([("compiled", 1), *others], [("compiled", 2), *others]), usage
     finally:
         sys.modules.pop(path.stem, None)
 
@@ -105,20 +106,21 @@ def test_info_counts_the_files_and_bytes_of_each_folder_exactly(root, capsys):
     assert (code, err) == (0, "")
     lines = out.splitlines()
     assert lines[0] == f"cache root: {root}"
-    rows = {line.split()[0]: line.split()[1:5] for line in lines[1:5]}
+    rows = {line.split()[0]: line.split()[1:5] for line in lines[1:6]}
     assert rows == {
         "compiled": ["3", "files", "3.12", "kB"],
         "law_classes": ["1", "file", "10", "bytes"],
+        "state_kernels": ["0", "files", "0", "bytes"],
         "valid_studies": ["0", "files", "0", "bytes"],
         "total": ["4", "files", "3.13", "kB"],
     }
     for kind, description in CACHE_KINDS.items():
         assert lines[1 + list(CACHE_KINDS).index(kind)].endswith(f"  {description}")
-    assert lines[5] == "  and 2 other entries under the root, not a cache of ncstab (ncstab cache clear leaves them)"
-    assert len(lines) == 6
+    assert lines[6] == "  and 2 other entries under the root, not a cache of ncstab (ncstab cache clear leaves them)"
+    assert len(lines) == 7
     assert max(len(line) for line in lines[1:]) <= 100
     assert [(u.kind, u.files, u.size) for u in cache_usage()] == [
-        ("compiled", 3, 3120), ("law_classes", 1, 10), ("valid_studies", 0, 0)
+        ("compiled", 3, 3120), ("law_classes", 1, 10), ("state_kernels", 0, 0), ("valid_studies", 0, 0)
     ]
     assert _ncstab(capsys, "info") == (0, out, "")
 
@@ -128,7 +130,7 @@ def test_info_of_a_root_that_does_not_exist_is_all_zeros(tmp_path, monkeypatch, 
     code, out, _ = _ncstab(capsys)
     assert code == 0
     assert out.splitlines()[0] == f"cache root: {tmp_path / 'none'} (nothing cached yet)"
-    assert out.splitlines()[4].split() == ["total", "0", "files", "0", "bytes"]
+    assert out.splitlines()[5].split() == ["total", "0", "files", "0", "bytes"]
     assert not (tmp_path / "none").exists()
 
 

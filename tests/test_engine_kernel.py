@@ -148,3 +148,76 @@ def test_recorder_keeps_each_case_in_order_across_growth():
         assert steps["s"][case, :n].tolist() == expected[case]
         assert np.isnan(steps["s"][case, n:]).all() and (steps["stage"][case, n:] == -1).all()
         np.testing.assert_array_equal(steps["K"][case, :n, 1, 0], expected[case])
+
+
+# --- the state kernels kept on disk (ncstab.operators.kernel_cache) ---------------------------
+
+
+@pytest.mark.parametrize("name", LAWS + ["turco+no_tension", "dem_yade_avoid_ratcheting"])
+def test_a_cached_state_kernel_is_the_derived_one_and_needs_no_derivation(name, tmp_path, monkeypatch):
+    """A fresh process (the in-process cache bypassed) builds each kernel from its cached
+    text: the same source, bit-identical outputs, and no sympy derivation on the way."""
+    import inspect
+
+    from ncstab.operators import kernel_cache, tangent
+
+    monkeypatch.setenv("NCSTAB_CACHE_DIR", str(tmp_path))
+    u, t_internal, gamma = _states(SIZE, seed=3)
+    alpha0 = np.full(SIZE, 0.7)
+    q = DiamondChain(alpha0=alpha0).contact_variables(u)
+    length, alpha = q[:, 0, 0], q[:, 0, 1]
+    for definition in _definitions(name):
+        derived = tangent._derive_state_kernel(DiamondChain, definition)
+        first = tangent.compile_state_kernel.__wrapped__(DiamondChain, definition)  # a miss: derived, kept
+        key = kernel_cache.kernel_key(DiamondChain, definition)
+        assert (tmp_path / kernel_cache.CACHE_KIND / f"{key}.json").is_file()
+
+        def no_derivation(*args):
+            raise AssertionError("a cached kernel must not be derived again")
+
+        monkeypatch.setattr(tangent, "_derive_state_kernel", no_derivation)
+        second = tangent.compile_state_kernel.__wrapped__(DiamondChain, definition)  # a hit
+        monkeypatch.undo()
+        monkeypatch.setenv("NCSTAB_CACHE_DIR", str(tmp_path))
+        assert inspect.getsource(second) == inspect.getsource(first) == inspect.getsource(derived)
+        values = {"gamma": gamma, "alpha0": alpha0}
+        arguments = (length, alpha, np.cos(alpha), np.sin(alpha), t_internal,
+                     *(values.get(p, np.full(SIZE, 0.3)) for p in definition.parameter_names))
+        expected = [np.asarray(v, dtype=float) for v in derived(*arguments)]
+        for kernel in (first, second):
+            got = [np.asarray(v, dtype=float) for v in kernel(*arguments)]
+            assert all(np.array_equal(a, b, equal_nan=True) for a, b in zip(got, expected))
+        # Every global name the text reads resolves to what sympy's lambdify gives it.
+        names = kernel_cache.used_names(derived.__code__)
+        resolved = kernel_cache.numpy_namespace(names)
+        for name_read in names:
+            if name_read in derived.__globals__:
+                assert resolved.get(name_read) is derived.__globals__[name_read], name_read
+
+
+def test_a_changed_law_or_generator_names_another_kernel_entry(monkeypatch):
+    """The key covers the definition and the generating code: a changed parameter value
+    in a formula, or an edited generator module, never reads the old entry."""
+    from ncstab.operators import kernel_cache
+
+    base = law_definition("mcnamara")
+    other = law_definition("turco")
+    assert kernel_cache.kernel_key(DiamondChain, base) == kernel_cache.kernel_key(DiamondChain, base)
+    assert kernel_cache.kernel_key(DiamondChain, base) != kernel_cache.kernel_key(DiamondChain, other)
+    before = kernel_cache.kernel_key(DiamondChain, base)
+    monkeypatch.setattr(kernel_cache, "GENERATING_MODULES", (*kernel_cache.GENERATING_MODULES, "ncstab.cache"))
+    assert kernel_cache.kernel_key(DiamondChain, base) != before
+
+
+def test_a_corrupt_kernel_entry_is_derived_again(tmp_path, monkeypatch):
+    from ncstab.operators import kernel_cache, tangent
+
+    monkeypatch.setenv("NCSTAB_CACHE_DIR", str(tmp_path))
+    definition = law_definition("mcnamara")
+    key = kernel_cache.kernel_key(DiamondChain, definition)
+    entry = tmp_path / kernel_cache.CACHE_KIND / f"{key}.json"
+    entry.parent.mkdir(parents=True)
+    entry.write_text("{not json", encoding="utf-8")
+    kernel = tangent.compile_state_kernel.__wrapped__(DiamondChain, definition)
+    assert kernel(1.0, 0.5, math.cos(0.5), math.sin(0.5), 0.0, 1.0, 0.5)[0] == 0.0
+    assert '"source"' in entry.read_text(encoding="utf-8")

@@ -59,6 +59,7 @@ CACHE_FORMAT = 1
 CACHE_KINDS: dict[str, str] = {
     "compiled": "the compiled stepper's loops and numba's machine code",
     "law_classes": "each law's class and derivation (ncstab laws)",
+    "state_kernels": "each law's generated kernel of forces and K",
     "valid_studies": "study texts found valid in archives (ncstab info, plot)",
 }
 

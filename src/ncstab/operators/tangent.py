@@ -240,6 +240,19 @@ STATE_KERNEL_OUTPUTS = ("N", "T", "F1", "F2", "K11", "K12", "K21", "K22", "dT_dD
 def compile_state_kernel(system_type: type, definition: LawDefinition) -> Callable[..., list]:
     """One fused numpy function for forces, K and the T rate of a one-contact system.
 
+    Derived by :func:`_derive_state_kernel` once per machine: its source is kept
+    in the cache directory (:mod:`ncstab.operators.kernel_cache`), and a later
+    process builds the function from it without sympy's derivation (half a
+    second per law).
+    """
+    from ncstab.operators.kernel_cache import cached_kernel
+
+    return cached_kernel(system_type, definition, lambda: _derive_state_kernel(system_type, definition))
+
+
+def _derive_state_kernel(system_type: type, definition: LawDefinition) -> Callable[..., list]:
+    """The state kernel of :func:`compile_state_kernel`, derived with sympy.
+
     The assembly of :func:`tangent_operator_at_contact_state` (K = w [J^T D J
     + Q_l H_l + Q_alpha H_alpha], F = w J^T Q) and of the internal-variable
     rate dT = C_Tl dl + C_Ta dalpha, done once in sympy on the system's
@@ -248,7 +261,7 @@ def compile_state_kernel(system_type: type, definition: LawDefinition) -> Callab
     elimination.  The constant zeros and ones of a law's rate matrix vanish
     from the generated code, and no (B, 2, 2) temporaries are built: this is
     the engine's inner loop.  sympy runs here only (cached per system type and
-    law definition), never per evaluation.
+    law definition, in the process and on disk), never per evaluation.
 
     Returns
     -------

@@ -137,10 +137,11 @@ class PathResult:
         return self.model.laws[self.laws.index(name)]
 
     def law_classes(self) -> dict[str, str]:
-        """The computed class of every law (:func:`ncstab.symbolic.classify`)."""
-        from ncstab.symbolic.classification import classify
+        """The computed class of every law (:func:`ncstab.symbolic.classify`, kept in the
+        cache directory by :func:`ncstab.symbolic.class_cache.class_summary`)."""
+        from ncstab.symbolic.class_cache import class_summary
 
-        return {law.name: classify(law).kind for law in self.model.laws}
+        return {law.name: class_summary(law).kind for law in self.model.laws}
 
     def force_controlled(self, stage: int) -> list[int]:
         """The dofs whose force a stage prescribes (held, driven, or free)."""
