@@ -26,7 +26,7 @@ from ncstab.paths import ParameterGrid
 from ncstab.studies import open_study, parse_study, run_study, run_study_chunked, write_dataset
 from ncstab.studies.archive import COMPRESSION
 from ncstab.studies.chunked import run_chunk
-from ncstab.studies import streaming
+from ncstab.studies import streaming_encode
 from ncstab.studies.streaming import ArchiveStream, BlockLayout, encode_chunk
 
 PREAMBLE = """
@@ -210,7 +210,7 @@ def test_hdf5_chunks_that_split_steps_and_trailing_dimensions_read_back_whole(tm
     """With HDF5 chunks of about 6 elements, ``step``, ``theta`` (8 values) and
     ``map_D2`` (4 values) are cut into windows of 3, the last one short: the
     encoder pads it, the archive holds exactly the values."""
-    monkeypatch.setattr(streaming, "CHUNK_ELEMENTS", 6)
+    monkeypatch.setattr(streaming_encode, "CHUNK_ELEMENTS", 6)
     study = parse_study(STUDIES["maps"])
     output = tmp_path / "maps.nc"
     run_study_chunked(study, output, chunk_cases=3)

@@ -14,7 +14,8 @@ import math
 from dataclasses import dataclass
 
 from ncstab.paths.api import ParameterGrid
-from ncstab.studies.streaming import BLOCK_CASES, BlockLayout
+from ncstab.studies.streaming_encode import BLOCK_CASES
+from ncstab.studies.streaming_layout import BlockLayout
 from ncstab.studies.study import Study
 
 __all__ = [
@@ -61,7 +62,7 @@ class Chunk:
 
 
 def archive_layout(study: Study, chunk_cases: int) -> BlockLayout:
-    """The blocks of a chunked run's archive: at most :data:`~ncstab.studies.streaming.BLOCK_CASES`
+    """The blocks of a chunked run's archive: at most :data:`~ncstab.studies.streaming_encode.BLOCK_CASES`
     cases, and no more than ``chunk_cases``, so that chunks are made of whole blocks."""
     if int(chunk_cases) < 1:
         raise ValueError(f"chunk_cases must be at least 1, got {chunk_cases}")
