@@ -198,14 +198,13 @@ drive = {{ D1 = 0.05 }}
 
 @pytest.fixture(scope="module")
 def swept_archive(tmp_path_factory) -> Path:
-    """A 36-case archive (2 laws x 9 gamma x 2 F2*), written by ncstab run."""
+    """A 36-case archive (2 laws x 9 gamma x 2 F2*), written by ncstab run (with the
+    session's cache: its compiled loops, and the study remembered valid there)."""
     folder = tmp_path_factory.mktemp("swept")
-    with pytest.MonkeyPatch.context() as patch:
-        patch.setenv("NCSTAB_CACHE_DIR", str(folder / "cache"))
-        study = folder / "swept.toml"
-        study.write_text(SWEPT_STUDY)
-        output = folder / "swept.nc"
-        assert main(["run", str(study), "-o", str(output), "--quiet"]) in (0, 1)
+    study = folder / "swept.toml"
+    study.write_text(SWEPT_STUDY)
+    output = folder / "swept.nc"
+    assert main(["run", str(study), "-o", str(output), "--quiet"]) in (0, 1)
     return output
 
 
@@ -218,9 +217,9 @@ def info_text(swept_archive, cache, capsys) -> str:
 def test_plot_imports_neither_sympy_nor_the_engine(swept_archive, tmp_path):
     """``ncstab plot`` draws what the archive stores: the symbolic layer (sympy, a
     second of import) and the path engine (numba) stay out of its process."""
-    # the cache ncstab run used: the run remembered its study as valid, so the
-    # archive's check does not parse it again (which needs the law catalogue, sympy)
-    env = dict(os.environ, NCSTAB_CACHE_DIR=str(swept_archive.parent / "cache"), MPLBACKEND="Agg")
+    # the cache ncstab run used (the session's): the run remembered its study as valid,
+    # so the archive's check does not parse it again (which needs the law catalogue, sympy)
+    env = dict(os.environ, MPLBACKEND="Agg")
     imported = _imported_after(["plot", str(swept_archive), "--directory", str(tmp_path)], env)
     assert {"xarray", "matplotlib"} <= set(imported)  # it did draw
     assert not {"sympy", "numba"} & set(imported)
@@ -285,3 +284,24 @@ def test_swept_values_list_up_to_eight_values_then_summarise():
     assert swept_values(np.linspace(0.1, 2.0, 8)) == "[0.1, 0.371429, 0.642857, 0.914286, 1.18571, 1.45714, 1.72857, 2]"
     assert swept_values(np.linspace(0.1, 2.0, 64)) == "64 values from 0.1 to 2"
     assert swept_values(np.array(["a", "b"])) == "[a, b]"
+
+
+def test_a_parsed_study_is_remembered_valid_and_a_rejected_one_is_not(cache):
+    """parse_study remembers every text it validates (so archives of it are checked without
+    parsing it again); a text it rejects is never remembered, and an archive carrying it is
+    refused as before."""
+    from ncstab.studies import StudyFileError, parse_study
+    from ncstab.studies.errors import ArchiveError
+    from ncstab.studies.verification import VALID_STUDIES_KIND, _study_key, check_study_text
+
+    from ncstab.cache import read_entry
+
+    parse_study(SWEPT_STUDY)
+    assert read_entry(VALID_STUDIES_KIND, _study_key(SWEPT_STUDY)) == {"valid": True}
+    bad = SWEPT_STUDY.replace('names = ["mcnamara", "cundall_strack"]', 'names = ["no_such_law"]')
+    with pytest.raises(StudyFileError):
+        parse_study(bad)
+    assert read_entry(VALID_STUDIES_KIND, _study_key(bad)) is None
+    with pytest.raises(ArchiveError, match="not a valid study file"):
+        check_study_text(bad, "archive.nc")
+    assert read_entry(VALID_STUDIES_KIND, _study_key(bad)) is None

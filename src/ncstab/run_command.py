@@ -56,13 +56,11 @@ def _check_run_options(args: argparse.Namespace) -> None:
 def _load_studies(paths: Sequence[str]) -> list | None:
     """Every study file validated (each error printed, one line each), or None if any is bad."""
     from ncstab.studies import StudyFileError, load_study
-    from ncstab.studies.verification import remember_valid_study
 
     studies, bad = [], False
     for path in paths:
         try:
-            studies.append(load_study(path))
-            remember_valid_study(studies[-1].text)  # its archive's check skips the parse
+            studies.append(load_study(path))  # parse_study remembers it valid: plot/info skip the parse
         except StudyFileError as error:
             print(str(error), file=sys.stderr)
             bad = True

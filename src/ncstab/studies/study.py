@@ -232,6 +232,9 @@ def parse_study(text: str, path: str | None = None) -> Study:
         if not errors.items:  # pragma: no cover - a missing programme always reports why
             errors.add("loading", "no valid loading programme")
         raise StudyFileError(source, sorted(errors.items, key=error_order))
+    from ncstab.studies.verification import remember_valid_study
+
+    remember_valid_study(text)  # the archives of this study then check it without parsing it again
     return Study(
         name=name,
         description=description,

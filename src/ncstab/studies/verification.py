@@ -173,13 +173,13 @@ def check_study_text(study: str, path: str | os.PathLike[str]) -> None:
     except StudyFileError as error:
         field, message = error.errors[0]
         raise ArchiveError(path, f"its 'study' attribute is not a valid study file ({field}: {message})") from None
-    remember_valid_study(study)
 
 
 def remember_valid_study(study: str) -> None:
     """Remember a study text as valid (it parsed), so that :func:`check_study_text` of
-    an archive of that study skips the parse: ``ncstab run`` calls it for every study
-    it loads, and ``ncstab plot``/``info`` of its archives then import no sympy."""
+    an archive of that study skips the parse: :func:`~ncstab.studies.parse_study` calls
+    it for every text it validates, so ``ncstab plot``/``info`` of the archives of a
+    study run here (``ncstab run``, ``run_study``, ``run_study_chunked``) import no sympy."""
     from ncstab.cache import write_entry
 
     write_entry(VALID_STUDIES_KIND, _study_key(study), {"valid": True})
