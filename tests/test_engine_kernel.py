@@ -195,6 +195,24 @@ def test_a_cached_state_kernel_is_the_derived_one_and_needs_no_derivation(name, 
                 assert resolved.get(name_read) is derived.__globals__[name_read], name_read
 
 
+def test_the_kernel_namespace_is_the_one_sympy_gives_a_numpy_lambdified_function():
+    """Every one of the ~500 names sympy's lambdify(modules="numpy") puts in a function's
+    globals resolves to the same object (the same value for the constant I), so a kernel
+    built from its cached text reads what the freshly lambdified one reads."""
+    import sympy as sp
+
+    from ncstab.operators import kernel_cache
+
+    probe = sp.lambdify([], 0, modules="numpy")
+    expected = {name: value for name, value in probe.__globals__.items()
+                if not name.startswith("__") and name != probe.__name__}
+    resolved = kernel_cache.numpy_namespace(set(expected))
+    assert len(expected) > 400
+    for name, value in expected.items():
+        same = resolved.get(name) is value or (isinstance(value, complex) and resolved.get(name) == value)
+        assert same, name
+
+
 def test_a_changed_law_or_generator_names_another_kernel_entry(monkeypatch):
     """The key covers the definition and the generating code: a changed parameter value
     in a formula, or an edited generator module, never reads the old entry."""
