@@ -16,8 +16,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 import ncstab
-from ncstab.operators.indicators import det_K, flutter_discriminant, hill_eigenvalue, skew_part, symmetric_part
-from ncstab.paths.model_batch import family_fields
+from ncstab.operators.indicators import det_K, hill_eigenvalue, skew_part, symmetric_part
+from ncstab.paths.dataset_dynamics import dynamics_at_states, flutter_variable, stored_spectrum
 from ncstab.paths.programme import EVENTS
 from ncstab.paths.threads import side_thread
 from ncstab.paths.variables import (
@@ -26,6 +26,7 @@ from ncstab.paths.variables import (
     FLUTTER_FREQUENCY,
     FLUTTER_WITHOUT_INERTIA,
     VARIABLES,
+    family_fields,
 )
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -93,7 +94,7 @@ def path_dataset(result: "PathResult", directions: int | None = None, spectrum: 
     # second thread where the study may use two (numpy releases the GIL in its
     # loops), the rest here; shares of about equal time (65,536 cases: 1.1 s and 1.3 s).
     with side_thread() as pool:
-        flutter = pool.submit(_flutter, result, stacked("u"), K)
+        flutter = pool.submit(flutter_variable, result, stacked("u"), K)
         mixed = pool.submit(result.mixed_control, K, stage)
         d2w = _normalised_work(K, stacked("du"))
         K_sym, K_skew, det, hill = symmetric_part(K), skew_part(K), det_K(K), hill_eigenvalue(K)
@@ -135,7 +136,7 @@ def path_dataset(result: "PathResult", directions: int | None = None, spectrum: 
     if spectrum:
         if result.model.definition.mass is None:
             raise ValueError(f"system {result.model.definition.name!r} declares no inertia: it has no dynamic spectrum")
-        roots = _spectrum(result, stacked("u"), K)
+        roots = stored_spectrum(result, stacked("u"), K)
         data["spectrum_re"] = (step_dims + ["root"], roots.real)
         data["spectrum_im"] = (step_dims + ["root"], roots.imag)
     if "branch_index" in result.results[0].steps:
@@ -188,7 +189,7 @@ def path_dataset(result: "PathResult", directions: int | None = None, spectrum: 
                 values = values.astype(np.int32)
             data[f"{event}_{suffix}"] = (sweep_dims + dims, values, event_variable_attributes(event, suffix))
     if result.model.definition.mass is not None:
-        frequency = _dynamic_matrices(
+        frequency = dynamics_at_states(
             result,
             np.stack([r.events["flutter_onset"]["u"] for r in result.results]).reshape(shape + (n,)),
             np.stack([r.events["flutter_onset"]["K"] for r in result.results]).reshape(shape + (n, n)),
@@ -226,72 +227,11 @@ def event_variable_attributes(event: str, field: str) -> dict[str, str]:
     return {"units": units, "long_name": long_name.format(event=event), "description": description.format(event=event)}
 
 
-def _case_parameters(result: "PathResult", extra: tuple[int, ...]) -> tuple[np.ndarray, ...]:
-    """The system's parameters per case, broadcast over the trailing dims ``extra``
-    and flattened: one value per (law, case, *extra)."""
-    values = result.grid.case_values()
-    size = result.grid.size
-    out = []
-    for spec in result.model.definition.parameters:
-        per_case = np.asarray(values.get(spec.name, np.full(size, spec.default)), dtype=float)
-        per_case = np.broadcast_to(per_case, (len(result.laws), size))
-        out.append(np.broadcast_to(per_case.reshape(per_case.shape + (1,) * len(extra)), per_case.shape + extra).ravel())
-    return tuple(out)
-
-
-def _dynamic_matrices(result: "PathResult", u: np.ndarray, K: np.ndarray, critical: bool = False) -> np.ndarray:
-    """max Re s (or, ``critical``, the critical frequency) of M(u) s^2 + C s + K at
-    states ``u`` ``(law, *sweep, *extra, n)`` with their K, NaN where K is."""
-    from ncstab.operators.dynamics import critical_frequency, flutter_indicator
-    from ncstab.systems.compile import compile_system
-
-    compiled = compile_system(result.model.definition)
-    n = u.shape[-1]
-    extra = u.shape[len(result.shape):-1]
-    flat_u, flat_K = u.reshape(-1, n), K.reshape(-1, n, n)
-    finite = np.isfinite(flat_K).all(axis=(-2, -1)) & np.isfinite(flat_u).all(axis=-1)
-    out = np.full(flat_u.shape[0], np.nan)
-    if finite.any():
-        parameters = tuple(p[finite] for p in _case_parameters(result, extra))
-        mass = compiled.mass(flat_u[finite], parameters)
-        damping = compiled.damping(flat_u[finite], parameters)
-        function = critical_frequency if critical else flutter_indicator
-        with np.errstate(invalid="ignore"):
-            out[finite] = function(mass, damping, flat_K[finite])
-    return out.reshape(u.shape[:-1])
-
-
-def _spectrum(result: "PathResult", u: np.ndarray, K: np.ndarray) -> np.ndarray:
-    """The 2n roots of det(M(u) s^2 + C s + K) at every stored state (NaN padding kept)."""
-    from ncstab.operators.dynamics import dynamic_spectrum
-    from ncstab.systems.compile import compile_system
-
-    compiled = compile_system(result.model.definition)
-    n = u.shape[-1]
-    flat_u, flat_K = u.reshape(-1, n), K.reshape(-1, n, n)
-    finite = np.isfinite(flat_K).all(axis=(-2, -1)) & np.isfinite(flat_u).all(axis=-1)
-    out = np.full((flat_u.shape[0], 2 * n), np.nan + 0j)
-    if finite.any():
-        parameters = tuple(p[finite] for p in _case_parameters(result, u.shape[len(result.shape):-1]))
-        mass = compiled.mass(flat_u[finite], parameters)
-        damping = compiled.damping(flat_u[finite], parameters)
-        out[finite] = dynamic_spectrum(mass, damping, flat_K[finite])
-    return out.reshape(u.shape[:-1] + (2 * n,))
-
-
 def _normalised_work(K: np.ndarray, du: np.ndarray) -> np.ndarray:
     """d2W along the path, du . K du / (|K du| |du|) (the cosine between dF and du)."""
     dF = np.einsum("...ij,...j->...i", K, du)
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.einsum("...i,...i->...", dF, du) / (np.linalg.norm(dF, axis=-1) * np.linalg.norm(du, axis=-1))
-
-
-def _flutter(result: "PathResult", u: np.ndarray, K: np.ndarray) -> np.ndarray:
-    """The ``flutter`` variable: max Re s of the system's dynamics, or the discriminant
-    of K for a system without inertia."""
-    if result.model.definition.mass is None:
-        return flutter_discriminant(K)
-    return _dynamic_matrices(result, u, K)
 
 
 def _coordinates(result: "PathResult", length: int, directions: int | None, n_cycles: int) -> dict:

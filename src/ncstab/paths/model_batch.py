@@ -28,29 +28,13 @@ import numpy as np
 from ncstab.laws.catalogue import no_tension_branches
 from ncstab.operators.tangent import assemble_interactions
 from ncstab.paths.events import IndicatorLayout
-from ncstab.paths.model import Evaluation
+from ncstab.paths.variables import family_fields
+from ncstab.paths.evaluation import Evaluation
 from ncstab.symbolic.compile import CompiledInteraction, compile_interaction
 from ncstab.systems.compile import CompiledSystem, compile_system
-from ncstab.systems.definition import InteractionFamily, SystemDefinition
+from ncstab.systems.definition import SystemDefinition
 
 __all__ = ["ModelBatch", "family_fields"]
-
-
-def family_fields(definition: SystemDefinition) -> list[tuple[InteractionFamily, tuple[str, ...], str]]:
-    """Per family: (family, the names of its stored fields, the name of its members'
-    dimension).  The first family of a kind has the bare names (``l``, ``alpha``,
-    ``N``, ``T``; ``theta``, ``moment``); a further family of the same kind has
-    them prefixed with its name."""
-    seen: set[str] = set()
-    out = []
-    for family in definition.families:
-        names = family.variable_names + family.force_names
-        if family.kind in seen:
-            out.append((family, tuple(f"{family.name}_{n}" for n in names), family.name))
-        else:
-            out.append((family, names, family.dimension))
-        seen.add(family.kind)
-    return out
 
 
 @dataclass(frozen=True)

@@ -24,6 +24,7 @@ import numpy as np
 
 from ncstab.paths import stage_entry
 from ncstab.paths.accepted_steps import AcceptedSteps, indicators_at
+from ncstab.paths.case_ends import CaseEnds
 from ncstab.paths.case_result import CaseResult, as_strings, empty_events
 from ncstab.paths.crossings import event_tables, locate_crossings, store_first_events
 from ncstab.paths.cut_points import cut_points, drop_limit_points_at_bifurcations, move_to_cut_points
@@ -35,13 +36,13 @@ from ncstab.paths.programme import LoadingProgramme
 from ncstab.paths.projection import advance
 from ncstab.paths.recorder import Recorder
 from ncstab.paths.rhs import Auxiliary, StateLayout, state_derivative
-from ncstab.paths.status import FINISHED, RUNNING, failed, stopped
+from ncstab.paths.status import RUNNING
 from ncstab.paths.tangent_field import StageArrays
 
 __all__ = ["BatchStepper", "follow_cases"]
 
 
-class BatchStepper:
+class BatchStepper(CaseEnds):
     """Arclength continuation of a batch of cases through a loading programme.
 
     Every running case advances by one DOP853 step per pass (:meth:`step`),
@@ -149,23 +150,7 @@ class BatchStepper:
             engine=self.engine,
         )
 
-    # --- ending cases and storing states ---------------------------------------------------------
-
-    def end(self, index: np.ndarray, state: str, text: str | np.ndarray) -> None:
-        """Cases ``index`` end with status ``state`` and message ``text``."""
-        if index.size:
-            self.status[index] = state
-            self.message[index] = text
-            if self.progress:
-                self.progress(index.size)
-
-    def fail(self, index: np.ndarray, reason: str, text: str | np.ndarray) -> None:
-        """Cases ``index`` fail (status ``failed:<reason>``)."""
-        self.end(index, failed(reason), text)
-
-    def finish(self, index: np.ndarray) -> None:
-        """Cases ``index`` have done every stage."""
-        self.end(index, FINISHED, f"finished all {len(self.programme)} loading stage(s)")
+    # --- storing states --------------------------------------------------------------------------
 
     def record(self, index: np.ndarray, y: np.ndarray, aux: Auxiliary, stage: StageArrays) -> None:
         """Store the states ``y`` of cases ``index`` (with ``aux`` there, in ``stage``)."""
@@ -254,26 +239,6 @@ class BatchStepper:
         self.fail_step_size_underflow(active[underflow])
         return accept
 
-    def fail_step_size_underflow(self, cases: np.ndarray) -> None:
-        """Cases ``cases`` fail: their step size fell below ``min_step``."""
-        self.fail(
-            cases,
-            "step_size_underflow",
-            "the step size fell below min_step: the path cannot be continued "
-            "(non-convergent Newton projection, a kink or a singular point)",
-        )
-
-    def fail_outside_domain(self, cases: np.ndarray, why: np.ndarray) -> None:
-        """Cases ``cases`` fail: they left the admissible domain (``why``, per case)."""
-        for reason in np.unique(why):
-            which = cases[why == reason]
-            self.fail(
-                which,
-                "left_domain",
-                f"the path left the admissible domain ({reason}) in stage "
-                f"{self.stage_index[which[0]] + 1}",
-            )
-
     def _fail_outside_domain(self, steps: AcceptedSteps) -> AcceptedSteps | None:
         """Fail the cases whose new state left the admissible domain (finite numbers,
         and the batch's own conditions: l* > 0 and |alpha| < pi/2 at every contact...).
@@ -346,23 +311,6 @@ class BatchStepper:
         too_many = (self.accepted[cases] >= self.options.max_steps) & ~target_hit & ~stop_hit
         self.fail_max_steps(cases[too_many])
         self.enter_next_stage(cases[target_hit])
-
-    def stop(self, cases: np.ndarray, columns: np.ndarray) -> None:
-        """Cases ``cases`` stop at the stop event of indicator column ``columns`` (per case)."""
-        for column in np.unique(columns):
-            which = cases[columns == column]
-            name = self.columns.events[column]
-            number = self.stage_index[which[0]] + 1
-            self.end(which, stopped(name), f"stopped at {name} in stage {number}")
-
-    def fail_max_steps(self, cases: np.ndarray) -> None:
-        """Cases ``cases`` fail: ``max_steps`` accepted steps before the end of the programme."""
-        self.fail(
-            cases,
-            "max_steps",
-            f"reached max_steps = {self.options.max_steps} accepted steps before the end of the "
-            "programme",
-        )
 
     def enter_next_stage(self, cases: np.ndarray) -> None:
         """Cases ``cases`` reached their stage target: they enter the next stage."""

@@ -6,7 +6,12 @@ on archive variables.  All quantities are dimensionless (seed Eq. 37).
 
 from __future__ import annotations
 
-__all__ = ["CASE_DIMENSION", "EVENT_FIELDS", "MEMBER_DIMENSIONS", "RESERVED_NAMES", "VARIABLES"]
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # pragma: no cover
+    from ncstab.systems.definition import InteractionFamily, SystemDefinition
+
+__all__ = ["CASE_DIMENSION", "EVENT_FIELDS", "MEMBER_DIMENSIONS", "RESERVED_NAMES", "VARIABLES", "family_fields"]
 
 #: Dimension of the flat cases of one chunk of a sweep (ncstab.paths.api.CaseRange).
 CASE_DIMENSION = "case"
@@ -91,3 +96,20 @@ RESERVED_NAMES = frozenset(
         "secondary_contact", "turning_point",
     ) for suffix in EVENT_FIELDS}
 )
+
+
+def family_fields(definition: SystemDefinition) -> list[tuple[InteractionFamily, tuple[str, ...], str]]:
+    """Per family: (family, the names of its stored fields, the name of its members'
+    dimension).  The first family of a kind has the bare names (``l``, ``alpha``,
+    ``N``, ``T``; ``theta``, ``moment``); a further family of the same kind has
+    them prefixed with its name."""
+    seen: set[str] = set()
+    out = []
+    for family in definition.families:
+        names = family.variable_names + family.force_names
+        if family.kind in seen:
+            out.append((family, tuple(f"{family.name}_{n}" for n in names), family.name))
+        else:
+            out.append((family, names, family.dimension))
+        seen.add(family.kind)
+    return out

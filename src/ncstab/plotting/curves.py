@@ -32,8 +32,8 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 from ncstab.plotting.cases import Case, CaseEvent, path_cases
+from ncstab.plotting.coincident_cases import coincidence_note, coincident_cases
 from ncstab.plotting.closed_form_overlays import (
-    ROTATIONAL_LAWS,
     ClosedFormOverlay,
     closed_form_overlay,
 )
@@ -51,7 +51,6 @@ from ncstab.plotting.style import (
     law_display_name,
     symbolic_text,
 )
-from ncstab.plotting.sweep_shape import MAX_CURVES
 
 __all__ = [
     "BRANCH_COLOURS",
@@ -85,12 +84,6 @@ FAILED_STYLE = {"color": FAILED_COLOUR, "linestyle": (0, (2, 2)), "linewidth": 1
 COINCIDENT_DASH = 7.0
 #: Colours of the two branches of a closed form (seed Figs. 4-5 colour each branch).
 BRANCH_COLOURS = {-1: "tab:blue", 1: "tab:red"}
-#: Two cases follow the same path if their stored (Delta*, alpha, F*) agree to this
-#: (absolute, dimensionless): the same equations integrated with the same steps agree
-#: to round-off (2e-16 measured for seed Figs. 14-15), far below the integrator's rtol.
-#: (In pure shear the rotational laws coincide by seed Eq. 60 even where the engine
-#: samples their paths at other arclengths.)
-SAME_PATH_TOL = 1e-9
 
 
 @dataclass
@@ -133,63 +126,16 @@ class CurvesContext:
         return self.overlays[k] is not None and self.same_as[k] is None
 
 
-def _same_path(a: Case, b: Case, rigid: bool) -> bool:
-    """Whether two cases follow the same path: the same pure-shear law (seed Eq. 60), or the
-    same stored states to :data:`SAME_PATH_TOL`."""
-    if a.failed or b.failed or a.n_steps == 0 or b.n_steps == 0:
-        return False
-    (base_a, *modifiers_a), (base_b, *modifiers_b) = a.law.split("+"), b.law.split("+")
-    if (rigid and {base_a, base_b} <= set(ROTATIONAL_LAWS) and sorted(modifiers_a) == sorted(modifiers_b)
-            and a.swept == b.swept):
-        return True  # the rotational shear spring model, whatever the law (seed Eq. 60)
-    if a.n_steps != b.n_steps:
-        return False
-    first = np.column_stack([a.u, a.alpha, a.F])
-    second = np.column_stack([b.u, b.alpha, b.F])
-    return bool(np.allclose(first, second, rtol=0, atol=SAME_PATH_TOL, equal_nan=True))
-
-
-def _coincident(cases: list[Case], rigid: bool) -> list[int | None]:
-    """For each case, the first earlier case on the same path (None if there is none).
-
-    Pairs are compared for up to :data:`MAX_CURVES` cases (what the curve figures draw);
-    for more, no case is said to coincide.
-    """
-    same_as: list[int | None] = [None] * len(cases)
-    if len(cases) > MAX_CURVES:
-        return same_as
-    for k, case in enumerate(cases):
-        for j in range(k):
-            if same_as[j] is None and _same_path(cases[j], case, rigid):
-                same_as[k] = j
-                break
-    return same_as
-
-
-def _coincidence_note(cases: list[Case], labels: list[str], k: int, first: int, rigid: bool) -> str:
-    """``":\nsame path as Cundall–Strack in pure shear (seed Eq. 60)"``: appended to case k's label."""
-    other = cases[first]
-    if other.law != cases[k].law:
-        name = law_display_name(other.law).split(" (")[0]  # without the class: short enough for a legend
-        note = f"same path as {name}"
-    else:
-        note = f"same path as {labels[first]}"
-    laws = {other.law.split("+")[0], cases[k].law.split("+")[0]}
-    if rigid and laws <= set(ROTATIONAL_LAWS):
-        note += " in pure shear (seed Eq. 60)"
-    return ":\n" + note
-
-
 def curves_context(dataset: xr.Dataset) -> CurvesContext:
     """Everything the curve figures need from a Dataset (read once)."""
     cases = path_cases(dataset)
     normal = str(dataset.attrs.get("normal", "deformable"))
     secondary_contacts = str(dataset.attrs.get("secondary_contacts", "activate"))
     labels, title = _compact_labels(cases)
-    same_as = _coincident(cases, normal == "rigid")
+    same_as = coincident_cases(cases, normal == "rigid")
     for k, first in enumerate(same_as):
         if first is not None:
-            labels[k] += _coincidence_note(cases, labels, k, first, normal == "rigid")
+            labels[k] += coincidence_note(cases, labels, k, first, normal == "rigid")
     description = str(dataset.attrs.get("study_description") or dataset.attrs.get("description") or "")
     return CurvesContext(
         dataset=dataset,

@@ -109,7 +109,7 @@ def study_variable_names(
         The study's loading programme, ``[map]`` section (or None) and ``[output] spectrum``.
     """
     from ncstab.paths.dataset import event_field_dims
-    from ncstab.paths.model_batch import family_fields
+    from ncstab.paths.variables import family_fields
     from ncstab.studies.maps import STATE_MAP_FIELDS
 
     definition = system.definition if isinstance(system, SystemSpec) else system

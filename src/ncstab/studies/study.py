@@ -39,14 +39,13 @@ from ncstab.studies.study_fields import (
     unknown_sections,
 )
 from ncstab.studies.study_loading import (
-    StudyMap,
     check_stages_do_something,
     loading_section,
-    map_section,
     options_section,
     output_section,
     spectrum_option,
 )
+from ncstab.studies.study_map import StudyMap, map_section
 from ncstab.studies.study_system import (
     check_law_kinds,
     check_law_spellings,

@@ -1,0 +1,84 @@
+"""How the cases of the numpy stepper end: finished, stopped at an event, or failed with a reason.
+
+Each case ends once, with a status (``finished``, ``stopped:<event>``,
+``failed:<reason>``, :mod:`ncstab.paths.status`) and a message saying what and
+where; the others go on.  :class:`CaseEnds` is the part of
+:class:`ncstab.paths.stepper.BatchStepper` that writes them (the compiled
+stepper ends its cases through the same methods).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable
+
+import numpy as np
+
+from ncstab.paths.status import FINISHED, failed, stopped
+
+__all__ = ["CaseEnds"]
+
+
+class CaseEnds:
+    """Ending cases of a stepper: its ``status``, ``message``, ``progress``,
+    ``programme``, ``options``, ``stage_index`` and ``columns`` (set by the stepper)."""
+
+    status: np.ndarray
+    message: np.ndarray
+    progress: Callable[[int], None] | None
+    programme: Any
+    options: Any
+    stage_index: np.ndarray
+    columns: Any
+
+    def end(self, index: np.ndarray, state: str, text: str | np.ndarray) -> None:
+        """Cases ``index`` end with status ``state`` and message ``text``."""
+        if index.size:
+            self.status[index] = state
+            self.message[index] = text
+            if self.progress:
+                self.progress(index.size)
+
+    def fail(self, index: np.ndarray, reason: str, text: str | np.ndarray) -> None:
+        """Cases ``index`` fail (status ``failed:<reason>``)."""
+        self.end(index, failed(reason), text)
+
+    def finish(self, index: np.ndarray) -> None:
+        """Cases ``index`` have done every stage."""
+        self.end(index, FINISHED, f"finished all {len(self.programme)} loading stage(s)")
+
+    def fail_step_size_underflow(self, cases: np.ndarray) -> None:
+        """Cases ``cases`` fail: their step size fell below ``min_step``."""
+        self.fail(
+            cases,
+            "step_size_underflow",
+            "the step size fell below min_step: the path cannot be continued "
+            "(non-convergent Newton projection, a kink or a singular point)",
+        )
+
+    def fail_outside_domain(self, cases: np.ndarray, why: np.ndarray) -> None:
+        """Cases ``cases`` fail: they left the admissible domain (``why``, per case)."""
+        for reason in np.unique(why):
+            which = cases[why == reason]
+            self.fail(
+                which,
+                "left_domain",
+                f"the path left the admissible domain ({reason}) in stage "
+                f"{self.stage_index[which[0]] + 1}",
+            )
+
+    def stop(self, cases: np.ndarray, columns: np.ndarray) -> None:
+        """Cases ``cases`` stop at the stop event of indicator column ``columns`` (per case)."""
+        for column in np.unique(columns):
+            which = cases[columns == column]
+            name = self.columns.events[column]
+            number = self.stage_index[which[0]] + 1
+            self.end(which, stopped(name), f"stopped at {name} in stage {number}")
+
+    def fail_max_steps(self, cases: np.ndarray) -> None:
+        """Cases ``cases`` fail: ``max_steps`` accepted steps before the end of the programme."""
+        self.fail(
+            cases,
+            "max_steps",
+            f"reached max_steps = {self.options.max_steps} accepted steps before the end of the "
+            "programme",
+        )

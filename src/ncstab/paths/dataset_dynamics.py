@@ -1,0 +1,83 @@
+"""The dynamic variables of a path Dataset, from the stored states: M(u) s^2 + C s + K.
+
+At every stored state (or located event) of a system with inertia, the
+system's mass and damping matrices (:func:`ncstab.systems.compile.compile_system`)
+with the stored K give the growth rate max Re s (the ``flutter`` variable),
+the critical frequency at a flutter onset, or the 2n roots (``spectrum_re``,
+``spectrum_im``); a system without inertia gets the discriminant of K
+(:func:`ncstab.operators.indicators.flutter_discriminant`).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ncstab.operators.indicators import flutter_discriminant
+
+if TYPE_CHECKING:  # pragma: no cover
+    from ncstab.paths.result import PathResult
+
+__all__ = ["case_parameters", "dynamics_at_states", "flutter_variable", "stored_spectrum"]
+
+
+def case_parameters(result: "PathResult", extra: tuple[int, ...]) -> tuple[np.ndarray, ...]:
+    """The system's parameters per case, broadcast over the trailing dims ``extra``
+    and flattened: one value per (law, case, *extra)."""
+    values = result.grid.case_values()
+    size = result.grid.size
+    out = []
+    for spec in result.model.definition.parameters:
+        per_case = np.asarray(values.get(spec.name, np.full(size, spec.default)), dtype=float)
+        per_case = np.broadcast_to(per_case, (len(result.laws), size))
+        out.append(np.broadcast_to(per_case.reshape(per_case.shape + (1,) * len(extra)), per_case.shape + extra).ravel())
+    return tuple(out)
+
+
+def dynamics_at_states(result: "PathResult", u: np.ndarray, K: np.ndarray, critical: bool = False) -> np.ndarray:
+    """max Re s (or, ``critical``, the critical frequency) of M(u) s^2 + C s + K at
+    states ``u`` ``(law, *sweep, *extra, n)`` with their K, NaN where K is."""
+    from ncstab.operators.dynamics import critical_frequency, flutter_indicator
+    from ncstab.systems.compile import compile_system
+
+    compiled = compile_system(result.model.definition)
+    n = u.shape[-1]
+    extra = u.shape[len(result.shape):-1]
+    flat_u, flat_K = u.reshape(-1, n), K.reshape(-1, n, n)
+    finite = np.isfinite(flat_K).all(axis=(-2, -1)) & np.isfinite(flat_u).all(axis=-1)
+    out = np.full(flat_u.shape[0], np.nan)
+    if finite.any():
+        parameters = tuple(p[finite] for p in case_parameters(result, extra))
+        mass = compiled.mass(flat_u[finite], parameters)
+        damping = compiled.damping(flat_u[finite], parameters)
+        function = critical_frequency if critical else flutter_indicator
+        with np.errstate(invalid="ignore"):
+            out[finite] = function(mass, damping, flat_K[finite])
+    return out.reshape(u.shape[:-1])
+
+
+def stored_spectrum(result: "PathResult", u: np.ndarray, K: np.ndarray) -> np.ndarray:
+    """The 2n roots of det(M(u) s^2 + C s + K) at every stored state (NaN padding kept)."""
+    from ncstab.operators.dynamics import dynamic_spectrum
+    from ncstab.systems.compile import compile_system
+
+    compiled = compile_system(result.model.definition)
+    n = u.shape[-1]
+    flat_u, flat_K = u.reshape(-1, n), K.reshape(-1, n, n)
+    finite = np.isfinite(flat_K).all(axis=(-2, -1)) & np.isfinite(flat_u).all(axis=-1)
+    out = np.full((flat_u.shape[0], 2 * n), np.nan + 0j)
+    if finite.any():
+        parameters = tuple(p[finite] for p in case_parameters(result, u.shape[len(result.shape):-1]))
+        mass = compiled.mass(flat_u[finite], parameters)
+        damping = compiled.damping(flat_u[finite], parameters)
+        out[finite] = dynamic_spectrum(mass, damping, flat_K[finite])
+    return out.reshape(u.shape[:-1] + (2 * n,))
+
+
+def flutter_variable(result: "PathResult", u: np.ndarray, K: np.ndarray) -> np.ndarray:
+    """The ``flutter`` variable: max Re s of the system's dynamics, or the discriminant
+    of K for a system without inertia."""
+    if result.model.definition.mass is None:
+        return flutter_discriminant(K)
+    return dynamics_at_states(result, u, K)
