@@ -227,7 +227,13 @@ def test_a_changed_law_or_generator_names_another_kernel_entry(monkeypatch):
     assert kernel_cache.kernel_key(DiamondChain, base) != before
 
 
-def test_a_corrupt_kernel_entry_is_derived_again(tmp_path, monkeypatch):
+@pytest.mark.parametrize("damage", ["{not json", "source that is no function", "def broken(:\n"])
+def test_a_corrupt_kernel_entry_is_derived_again(damage, tmp_path, monkeypatch):
+    """Unreadable JSON, or a readable entry whose source defines no function or does
+    not compile: the kernel is derived again and the entry rewritten."""
+    import json
+
+    from ncstab.cache import CACHE_FORMAT
     from ncstab.operators import kernel_cache, tangent
 
     monkeypatch.setenv("NCSTAB_CACHE_DIR", str(tmp_path))
@@ -235,7 +241,10 @@ def test_a_corrupt_kernel_entry_is_derived_again(tmp_path, monkeypatch):
     key = kernel_cache.kernel_key(DiamondChain, definition)
     entry = tmp_path / kernel_cache.CACHE_KIND / f"{key}.json"
     entry.parent.mkdir(parents=True)
-    entry.write_text("{not json", encoding="utf-8")
+    if damage.startswith("{"):
+        entry.write_text(damage, encoding="utf-8")
+    else:
+        entry.write_text(json.dumps({"format": CACHE_FORMAT, "key": key, "value": {"source": damage}}), "utf-8")
     kernel = tangent.compile_state_kernel.__wrapped__(DiamondChain, definition)
     assert kernel(1.0, 0.5, math.cos(0.5), math.sin(0.5), 0.0, 1.0, 0.5)[0] == 0.0
-    assert '"source"' in entry.read_text(encoding="utf-8")
+    assert "_lambdifygenerated" in json.loads(entry.read_text(encoding="utf-8"))["value"]["source"]

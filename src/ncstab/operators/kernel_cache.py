@@ -160,7 +160,11 @@ def cached_kernel(system_type: type, definition: Any, derive: Callable[[], Calla
     key = kernel_key(system_type, definition)
     entry = read_entry(CACHE_KIND, key)
     source = entry.get("source") if entry is not None else None
-    if not isinstance(source, str):
-        source = inspect.getsource(derive())
-        write_entry(CACHE_KIND, key, {"source": source})
+    if isinstance(source, str):
+        try:
+            return function_from_source(source, key)
+        except (SyntaxError, ValueError):  # a damaged entry: derived again and rewritten
+            pass
+    source = inspect.getsource(derive())
+    write_entry(CACHE_KIND, key, {"source": source})
     return function_from_source(source, key)
