@@ -98,6 +98,9 @@ PRELOAD_GRID = {
 }
 CONTACT_GRID = {"gamma": [0.5, 2.0], "alpha0": list(np.linspace(0.6, 1.0, 8))}
 
+#: Long steps stored in pieces (see the "pieces_*" programmes).
+PIECES = PathOptions(max_step=0.5, sample_step=0.02)
+
 #: name -> (system, programme, parameters, options)
 PROGRAMMES = {
     "uniaxial": (IGNORE, UNIAXIAL, UNIAXIAL_GRID, PathOptions()),
@@ -139,6 +142,12 @@ PROGRAMMES = {
     "small_max_step": (
         IGNORE, UNIAXIAL, {"gamma": [0.1, 2.0], "alpha0": list(np.linspace(0.3, 1.2, 4))}, PathOptions(max_step=0.002)
     ),
+    # Steps as long as the tolerance allows, cut into pieces of at most 0.02 on the
+    # interpolant (PathOptions.sample_step): stored states and sign checks at the
+    # pieces' ends, crossings located and steps cut inside a piece.
+    "pieces_preload_stop_limit": (IGNORE, PRELOAD_STOP, PRELOAD_GRID, PIECES),
+    "pieces_contact_activate": (ACTIVATE, CONTACT, {**CONTACT_GRID, "kappa": [1.0, 3.0]}, PIECES),
+    "pieces_max_steps": (IGNORE, UNIAXIAL, UNIAXIAL_GRID, dataclasses.replace(PIECES, max_steps=3)),
 }
 
 _CACHE: dict[tuple[str, str, str], object] = {}
@@ -371,6 +380,22 @@ def _check_reference(name: str, law: str, path) -> None:
             assert (status == "failed:step_size_underflow").sum() >= 1, status
     if name == "small_max_step":
         assert result.n_steps.min() >= 100, result.n_steps
+    if name.startswith("pieces_"):
+        # several stored states per accepted step (the pieces), never two further apart than 0.02
+        assert (result.n_steps > result.counters["accepted"] + 2).any(), (result.n_steps, result.counters["accepted"])
+        gaps = np.diff(result.steps["s"], axis=1)
+        assert np.nanmax(gaps) <= 0.02 * (1 + 1e-12), np.nanmax(gaps)
+    if name == "pieces_preload_stop_limit" and law != "turco":
+        assert (status == "stopped:limit_point").sum() >= 2, status
+    if name == "pieces_contact_activate":
+        assert found["secondary_contact"] == status.size, found
+        assert np.all(status == "finished"), status
+    if name == "pieces_max_steps":
+        # a step counts once, whatever its pieces: failed cases took exactly 3
+        failed = status == "failed:max_steps"
+        assert 0 < failed.sum() < status.size, status
+        assert np.all(result.counters["accepted"][failed] == 3), result.counters["accepted"]
+        assert (result.n_steps[failed] > 4).all(), result.n_steps
 
 
 @pytest.mark.parametrize("name", list(PROGRAMMES))

@@ -473,5 +473,7 @@ def test_the_guide_lists_every_option_with_its_default():
         assert row, field.name
         if isinstance(field.default, str):
             assert row.group(1) == f'"{field.default}"', field.name
+        elif field.default is None:
+            assert row.group(1) == "none", field.name
         else:
             assert float(row.group(1)) == field.default, field.name

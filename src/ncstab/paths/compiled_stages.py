@@ -29,9 +29,9 @@ if TYPE_CHECKING:
 
 __all__ = ["STEPS_PER_CALL", "CompiledStages", "control_rows"]
 
-#: Room the recorder must have per case before a call, in states: a case
-#: whose steps fill the recorder pauses, the recorder grows (doubling) and
-#: the next call goes on from there.
+#: Room the recorder must have per case before a call, in steps (each of at
+#: most ``options.max_pieces`` stored states): a case whose steps fill the
+#: recorder pauses, the recorder grows and the next call goes on from there.
 STEPS_PER_CALL = 1
 
 
@@ -133,7 +133,9 @@ class CompiledStages:
                 stages = stepper.stages  # (entering a stage may replace it)
                 cases = active[stepper.stage_index[active] == k]
                 recorder = stepper.recorder
-                recorder.reserve(int(recorder.count[cases].max()) + STEPS_PER_CALL)
+                # room for the next step's pieces of every case
+                pieces = stepper.options.pieces(np.minimum(stepper.step_size[cases], stepper.options.max_step))
+                recorder.reserve(int((recorder.count[cases] + STEPS_PER_CALL * pieces).max()))
                 lam_before, count_before = stepper.y[cases, stepper.layout.lam], recorder.count[cases]
                 secondary_state = np.ascontiguousarray(stages.secondary_state, dtype=np.int64)
                 arguments = (
@@ -149,7 +151,7 @@ class CompiledStages:
                     recorder.count, self.code, self.detail, stepper.options.rtol, stepper.options.atol,
                     stepper.options.newton_tol, stepper.options.newton_max_iter,
                     stepper.options.min_step, stepper.options.max_step, stepper.options.max_steps,
-                    stepper.options.event_tol,
+                    stepper.options.event_tol, stepper.options.stored_spacing, stepper.options.max_pieces,
                 )
                 self._run_shared(cases.astype(np.int64), arguments)
                 self._close_turns(stepper, int(k), turn_closed, turn_values)

@@ -65,11 +65,16 @@ def locate_crossings(
     stages_k: np.ndarray,
     layout: StateLayout,
     options: PathOptions,
+    piece: Any = None,
 ) -> Crossings:
     """Locate every indicator sign change of a step on the DOP853 interpolant.
 
     Root finding (Illinois) on the step length, each evaluation on the 7th-order
     interpolant and, for laws with a total form, projected onto equilibrium.
+    ``piece``: where the step is a piece of a longer step
+    (:mod:`ncstab.paths.step_pieces`), its ``dense`` coefficients, ``step_start``,
+    ``step_length`` and ``offset`` in it: the interpolant is the longer step's, at
+    ``(offset + sigma) / step_length``.
     """
     columns_of = batch.columns
     target_column = columns_of.target
@@ -87,18 +92,25 @@ def locate_crossings(
     located = np.bincount(pair_row, minlength=rows_n)
     if pair_row.size:
         # DOP853 interpolant over the step (3 extra stages, only where needed).
-        needs = np.flatnonzero(searched.any(axis=1))
-        b_n, s_n = batch.take(needs), stage.take(needs)
-        coefficients = dense_output(
-            lambda yy: state_derivative(b_n, s_n, yy, layout)[0], y_start[needs], y_raw[needs], h[needs], stages_k[:, needs]
-        )
-        slot_of_row = np.full(rows_n, -1)
-        slot_of_row[needs] = np.arange(needs.size)
+        if piece is None:
+            needs = np.flatnonzero(searched.any(axis=1))
+            b_n, s_n = batch.take(needs), stage.take(needs)
+            coefficients = dense_output(
+                lambda yy: state_derivative(b_n, s_n, yy, layout)[0], y_start[needs], y_raw[needs], h[needs],
+                stages_k[:, needs],
+            )
+            slot_of_row = np.full(rows_n, -1)
+            slot_of_row[needs] = np.arange(needs.size)
 
         def evaluate(index: np.ndarray, lengths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             pick = pair_row[index]
             b, s_ = batch.take(pick), stage.take(pick)
-            yy = evaluate_dense(y_start[pick], coefficients[:, slot_of_row[pick]], lengths / h[pick])
+            if piece is None:
+                yy = evaluate_dense(y_start[pick], coefficients[:, slot_of_row[pick]], lengths / h[pick])
+            else:
+                yy = evaluate_dense(
+                    piece.step_start[pick], piece.dense[:, pick], (piece.offset[pick] + lengths) / piece.step_length[pick]
+                )
             columns = pair_column[index]
             # The turning point and the branch test need the tangent; the columns built on K
             # (and the dynamic divergence) need K; gaps, overlaps, cycle ends and targets neither.

@@ -29,7 +29,7 @@ __all__ = ["cases_part"]
 
 
 def cases_part(
-    rate_form, M, angle, dense_coefficients, dop853, indicators, locate, motion, motion_product,
+    rate_form, M, angle, dense_coefficients, dense_value, dop853, indicators, locate, motion, motion_product,
     n_columns, njit, project, rhs, sign, state_slot, store_event, store_record, target_column,
 ) -> StageLoop:
     """Define ``run_cases`` and ``start`` and return them (a template: see the module docstring)."""
@@ -47,7 +47,7 @@ def cases_part(
                   cycles_done, turns, first_turn, turn_closed, turn_values,
                   law, parameters, cos0, sin0, stop_row, break_row, event_columns, event_found, event_values, event_stage,
                   stage_number, recorded, record_count, code, detail, rtol, atol, newton_tol,
-                  newton_max_iter, min_step, max_step, max_steps, event_tol):
+                  newton_max_iter, min_step, max_step, max_steps, event_tol, sample_step, max_pieces):
         """Run cases ``cases`` through their current stage (linear or cycle), one after the
         other; see :class:`Outcome`.  ``control_rows``: each case's control path (see
         ``control``); a turn of a cycle stage that closes sets ``turn_closed[i, first_turn
@@ -84,6 +84,11 @@ def cases_part(
         upper = np.empty(n_columns)
         change = np.zeros(n_columns, dtype=np.bool_)
         motion_before = np.empty(5)
+        samples = np.empty((max(max_pieces - 1, 1), M))  # the pieces' ends inside a step
+        y_end = np.empty(M)
+        dy_end = np.empty(M)
+        ev_end = np.empty(17)
+        aux_end = np.empty(8)
         for i in cases:
             fc0, fc1 = force_controlled[i, 0], force_controlled[i, 1]
             ctl = control_rows[i]
@@ -97,7 +102,7 @@ def cases_part(
             for k in range(5):
                 orient[1 + k] = reference[i, k]
             code[i] = Outcome_PAUSED
-            while record_count[i] < capacity:
+            while record_count[i] + piece_count(min(step_size[i], max_step), sample_step, max_pieces) <= capacity:
                 h = min(step_size[i], max_step)
                 for j in range(M):
                     y0[j] = y[i, j]
@@ -131,138 +136,206 @@ def cases_part(
                 else:
                     rhs(y_new, fc0, fc1, ctl, orient, law, p, c0, s0, dy_new, ev_new, aux_new)
                 # --- _fail_outside_domain
-                finite = np.isfinite(ev_new[4]) and np.isfinite(ev_new[5])
-                for j in range(M):
-                    finite = finite and np.isfinite(y_new[j])
-                if not finite or not (ev_new[0] > 0) or not (abs(angle(ev_new)) < half_pi):
-                    code[i] = Outcome_LEFT_DOMAIN
-                    detail[i] = 0 if not finite else (1 if not (ev_new[0] > 0) else 2)
+                if outside_domain(y_new, ev_new, code, detail, i):
                     break
-                # --- _complete: indicators, crossings located, cut, events, commit
-                indicators(ev_new, aux_new, y_new[2], fc0, fc1, lam_end[i], target_sign[i], turn_end,
-                           sec, after)
-                any_change = False
-                for c in range(n_columns):
-                    before[c] = indicator_table[i, c]
-                    change[c] = sign(before[c]) * sign(after[c]) < 0
-                change[target_column] = before[target_column] < 0 and after[target_column] >= 0
-                for c in range(n_columns):
-                    sigma[c] = np.inf
-                    lower[c] = np.nan
-                    upper[c] = np.nan
-                    any_change = any_change or change[c]
-                exact_target = change[target_column] and after[target_column] == 0
-                if any_change:
-                    searched = False
-                    for c in range(n_columns):
-                        searched = searched or (change[c] and not (c == target_column and exact_target))
-                    if searched:
-                        dense_coefficients(y0, y_raw, h, fc0, fc1, ctl, orient, law, p, c0, s0, stages,
-                                           coefficients, work, ev, aux)
-                    for c in range(n_columns):
-                        if not change[c] or (c == target_column and exact_target):
-                            continue
-                        sigma[c], lower[c], upper[c] = locate(
-                            c, h, before[c], after[c], y0, coefficients, fc0, fc1, ctl,
-                            lam_end[i], target_sign[i], turn_end, orient, sec, law, p, c0, s0,
-                            newton_tol, newton_max_iter, event_tol, ev, aux, values, located_states[c],
-                        )
-                        located[i] += 1
-                    if exact_target:
-                        sigma[target_column] = lower[target_column] = upper[target_column] = h
+                # --- the step's pieces (options.sample_step): the ends of all but the
+                # last on the step's interpolant, projected for a total form
+                pieces = piece_count(h, sample_step, max_pieces)
+                have_dense = False
+                if pieces > 1:
+                    dense_coefficients(y0, y_raw, h, fc0, fc1, ctl, orient, law, p, c0, s0, stages,
+                                       coefficients, work, ev, aux)
+                    have_dense = True
+                    projected = True
+                    for k in range(pieces - 1):
+                        dense_value(y0, coefficients, (k + 1) / pieces, samples[k])
+                        if not rate_form and not project(
+                            samples[k], fc0, fc1, ctl, law, p, c0, s0, newton_tol, newton_max_iter, ev
+                        ):
+                            projected = False
+                            break
+                    if not projected:  # a piece's end off equilibrium: the step is retried shorter
+                        step_size[i] = 0.5 * h
+                        rejected[i] += 1
+                        if step_size[i] < min_step:
+                            code[i] = Outcome_STEP_SIZE_UNDERFLOW
+                            break
+                        continue
+                offset = 0.0
+                ended = False
+                for piece in range(1, pieces + 1):
+                    if piece < pieces:
+                        end_at = h * piece / pieces
                         for j in range(M):
-                            located_states[target_column, j] = y_new[j]
-                # cut_points.cut_points: the target, the end of a turn, stop events, contact switches
-                cut_column = 0
-                cut_sigma = np.inf
-                for c in range(n_columns):
-                    cutting = change[c] and (stop_row[c] or cut_always[c] or break_row[c])
-                    if cutting and sigma[c] < cut_sigma:
-                        cut_sigma = sigma[c]
-                        cut_column = c
-                is_cut = np.isfinite(cut_sigma)
-                reach = cut_sigma if is_cut else h
-                # _store_first_events
-                for e in range(event_columns.shape[0]):
-                    best = np.inf
-                    best_column = -1
-                    for k in range(event_columns.shape[1]):
-                        c = event_columns[e, k]
-                        if c >= 0 and (best_column < 0 or sigma[c] < best):
-                            best = sigma[c]
-                            best_column = c
-                    if np.isfinite(best) and best <= reach + event_tol and not event_found[e, i]:
-                        state = located_states[best_column]
-                        rhs(state, fc0, fc1, ctl, orient, law, p, c0, s0, work[2], ev, aux)
-                        event_found[e, i] = True
-                        event_stage[e, i] = stage_number
-                        store_event(event_values[e, i], arclength[i], sigma[best_column], lower[best_column],
-                                    upper[best_column], state, ev)
-                if is_cut:  # cut_points.move_to_cut_points
-                    for j in range(M):
-                        y_new[j] = located_states[cut_column, j]
-                    switching = break_row[cut_column]
-                    kept = 0.0
-                    if switching:  # cut_points.switch_contacts_at: the direction of motion is kept
-                        plain[0] = orient[0]
-                        rhs(y_new, fc0, fc1, ctl, plain, law, p, c0, s0, work[2], ev, aux)
-                        motion(ev, aux, motion_before)
-                        sec = sec ^ switch_bits[cut_column]
-                        p[state_slot] = sec
-                        secondary_state[i] = sec
-                        rhs(y_new, fc0, fc1, ctl, plain, law, p, c0, s0, work[2], ev, aux)
-                        if motion_product(motion_before, ev, aux) < 0:
-                            orient[0] = -orient[0]
-                            orientation[i] = orient[0]
-                        for k in range(5):  # the motion continues from the switch: no reference across it
-                            orient[1 + k] = np.nan
-                        kept = after[cut_column]
-                    rhs(y_new, fc0, fc1, ctl, orient, law, p, c0, s0, dy_new, ev_new, aux_new)
-                    closes_turn = cut_column == cycle_column or cut_column == target_column
-                    if ctl[0] > 0 and closes_turn and done < turns:  # cut_points.close_turns: W, F, T where it closes
-                        slot = first_turn + done
-                        turn_closed[i, slot] = True
-                        turn_values[i, slot, 0] = y_new[M - 1]
-                        turn_values[i, slot, 1] = ev_new[4]
-                        turn_values[i, slot, 2] = ev_new[5]
-                        turn_values[i, slot, 3] = ev_new[3]
-                        done += 1
-                        cycles_done[i] = done
-                        turn_end = 2 * np.pi * (done + 1)
-                    indicators(ev_new, aux_new, y_new[2], fc0, fc1, lam_end[i], target_sign[i], turn_end,
+                            y_end[j] = samples[piece - 1, j]
+                        rhs(y_end, fc0, fc1, ctl, orient, law, p, c0, s0, dy_end, ev_end, aux_end)
+                        if outside_domain(y_end, ev_end, code, detail, i):
+                            ended = True
+                            break
+                    else:
+                        end_at = h
+                        for j in range(M):
+                            y_end[j] = y_new[j]
+                            dy_end[j] = dy_new[j]
+                        for j in range(ev_new.size):
+                            ev_end[j] = ev_new[j]
+                        for j in range(aux_new.size):
+                            aux_end[j] = aux_new[j]
+                    span = end_at - offset
+                    # --- _complete: indicators, crossings located, cut, events, commit
+                    indicators(ev_end, aux_end, y_end[2], fc0, fc1, lam_end[i], target_sign[i], turn_end,
                                sec, after)
-                    if switching:  # the post-crossing sign, so the crossing is not found twice
-                        after[cut_column] = kept
-                # _commit
-                for j in range(M):
-                    y[i, j] = y_new[j]
-                    derivative[i, j] = dy_new[j]
-                arclength[i] += reach
-                accepted[i] += 1
-                # stepper._commit: the reference of the next step, the motion (du, dF, dlambda)
-                orient[1], orient[2], orient[3], orient[4], orient[5] = (
-                    aux_new[2], aux_new[3], aux_new[6], aux_new[7], aux_new[4]
-                )
-                for k in range(5):
-                    reference[i, k] = orient[1 + k]
-                for c in range(n_columns):
-                    indicator_table[i, c] = after[c]
-                store_record(recorded, i, record_count[i], arclength[i], stage_number, y_new, ev_new, aux_new)
-                record_count[i] += 1
-                # _end_stages
-                stop_hit = is_cut and cut_column != target_column and stop_row[cut_column]
-                at_target = cut_column == target_column or after[target_column] >= 0
-                target_hit = is_cut and not stop_hit and at_target
-                if stop_hit:
-                    code[i] = Outcome_STOPPED
-                    detail[i] = cut_column
+                    any_change = False
+                    for c in range(n_columns):
+                        before[c] = indicator_table[i, c]
+                        change[c] = sign(before[c]) * sign(after[c]) < 0
+                    change[target_column] = before[target_column] < 0 and after[target_column] >= 0
+                    for c in range(n_columns):
+                        sigma[c] = np.inf
+                        lower[c] = np.nan
+                        upper[c] = np.nan
+                        any_change = any_change or change[c]
+                    exact_target = change[target_column] and after[target_column] == 0
+                    if any_change:
+                        searched = False
+                        for c in range(n_columns):
+                            searched = searched or (change[c] and not (c == target_column and exact_target))
+                        if searched and not have_dense:
+                            dense_coefficients(y0, y_raw, h, fc0, fc1, ctl, orient, law, p, c0, s0, stages,
+                                               coefficients, work, ev, aux)
+                            have_dense = True
+                        for c in range(n_columns):
+                            if not change[c] or (c == target_column and exact_target):
+                                continue
+                            sigma[c], lower[c], upper[c] = locate(
+                                c, h, offset, span, before[c], after[c], y0, coefficients, fc0, fc1, ctl,
+                                lam_end[i], target_sign[i], turn_end, orient, sec, law, p, c0, s0,
+                                newton_tol, newton_max_iter, event_tol, ev, aux, values, located_states[c],
+                            )
+                            located[i] += 1
+                        if exact_target:
+                            sigma[target_column] = lower[target_column] = upper[target_column] = span
+                            for j in range(M):
+                                located_states[target_column, j] = y_end[j]
+                    # cut_points.cut_points: the target, the end of a turn, stop events, contact switches
+                    cut_column = 0
+                    cut_sigma = np.inf
+                    for c in range(n_columns):
+                        cutting = change[c] and (stop_row[c] or cut_always[c] or break_row[c])
+                        if cutting and sigma[c] < cut_sigma:
+                            cut_sigma = sigma[c]
+                            cut_column = c
+                    is_cut = np.isfinite(cut_sigma)
+                    reach = cut_sigma if is_cut else span
+                    # _store_first_events
+                    for e in range(event_columns.shape[0]):
+                        best = np.inf
+                        best_column = -1
+                        for k in range(event_columns.shape[1]):
+                            c = event_columns[e, k]
+                            if c >= 0 and (best_column < 0 or sigma[c] < best):
+                                best = sigma[c]
+                                best_column = c
+                        if np.isfinite(best) and best <= reach + event_tol and not event_found[e, i]:
+                            state = located_states[best_column]
+                            rhs(state, fc0, fc1, ctl, orient, law, p, c0, s0, work[2], ev, aux)
+                            event_found[e, i] = True
+                            event_stage[e, i] = stage_number
+                            store_event(event_values[e, i], arclength[i], sigma[best_column], lower[best_column],
+                                        upper[best_column], state, ev)
+                    if is_cut:  # cut_points.move_to_cut_points
+                        for j in range(M):
+                            y_end[j] = located_states[cut_column, j]
+                        switching = break_row[cut_column]
+                        kept = 0.0
+                        if switching:  # cut_points.switch_contacts_at: the direction of motion is kept
+                            plain[0] = orient[0]
+                            rhs(y_end, fc0, fc1, ctl, plain, law, p, c0, s0, work[2], ev, aux)
+                            motion(ev, aux, motion_before)
+                            sec = sec ^ switch_bits[cut_column]
+                            p[state_slot] = sec
+                            secondary_state[i] = sec
+                            rhs(y_end, fc0, fc1, ctl, plain, law, p, c0, s0, work[2], ev, aux)
+                            if motion_product(motion_before, ev, aux) < 0:
+                                orient[0] = -orient[0]
+                                orientation[i] = orient[0]
+                            for k in range(5):  # the motion continues from the switch: no reference across it
+                                orient[1 + k] = np.nan
+                            kept = after[cut_column]
+                        rhs(y_end, fc0, fc1, ctl, orient, law, p, c0, s0, dy_end, ev_end, aux_end)
+                        closes_turn = cut_column == cycle_column or cut_column == target_column
+                        if ctl[0] > 0 and closes_turn and done < turns:  # cut_points.close_turns: W, F, T where it closes
+                            slot = first_turn + done
+                            turn_closed[i, slot] = True
+                            turn_values[i, slot, 0] = y_end[M - 1]
+                            turn_values[i, slot, 1] = ev_end[4]
+                            turn_values[i, slot, 2] = ev_end[5]
+                            turn_values[i, slot, 3] = ev_end[3]
+                            done += 1
+                            cycles_done[i] = done
+                            turn_end = 2 * np.pi * (done + 1)
+                        indicators(ev_end, aux_end, y_end[2], fc0, fc1, lam_end[i], target_sign[i], turn_end,
+                                   sec, after)
+                        if switching:  # the post-crossing sign, so the crossing is not found twice
+                            after[cut_column] = kept
+                    # _commit
+                    for j in range(M):
+                        y[i, j] = y_end[j]
+                        derivative[i, j] = dy_end[j]
+                    arclength[i] += reach
+                    if piece == 1:
+                        accepted[i] += 1
+                    # stepper._commit: the reference of the next piece, the motion (du, dF, dlambda)
+                    orient[1], orient[2], orient[3], orient[4], orient[5] = (
+                        aux_end[2], aux_end[3], aux_end[6], aux_end[7], aux_end[4]
+                    )
+                    for k in range(5):
+                        reference[i, k] = orient[1 + k]
+                    for c in range(n_columns):
+                        indicator_table[i, c] = after[c]
+                    store_record(recorded, i, record_count[i], arclength[i], stage_number, y_end, ev_end, aux_end)
+                    record_count[i] += 1
+                    # _end_stages
+                    stop_hit = is_cut and cut_column != target_column and stop_row[cut_column]
+                    at_target = cut_column == target_column or after[target_column] >= 0
+                    target_hit = is_cut and not stop_hit and at_target
+                    if stop_hit:
+                        code[i] = Outcome_STOPPED
+                        detail[i] = cut_column
+                        ended = True
+                        break
+                    if (is_cut or piece == pieces) and accepted[i] >= max_steps and not target_hit:
+                        code[i] = Outcome_MAX_STEPS
+                        ended = True
+                        break
+                    if target_hit:
+                        code[i] = Outcome_TARGET
+                        ended = True
+                        break
+                    if is_cut:  # the rest of the step is dropped: the next one starts here
+                        break
+                    offset = end_at
+                if ended:
                     break
-                if accepted[i] >= max_steps and not target_hit:
-                    code[i] = Outcome_MAX_STEPS
-                    break
-                if target_hit:
-                    code[i] = Outcome_TARGET
-                    break
+
+    @njit
+    def piece_count(h, sample_step, max_pieces):
+        # options.PathOptions.pieces: ceil(h / sample_step), between 1 and max_pieces
+        if not (h > sample_step):
+            return 1
+        return min(int(np.ceil(h / sample_step)), max_pieces)
+
+    @njit
+    def outside_domain(state, ev_state, code, detail, i):
+        # stepper._fail_outside_domain, one state: sets code and detail where it left the domain
+        finite = np.isfinite(ev_state[4]) and np.isfinite(ev_state[5])
+        for j in range(M):
+            finite = finite and np.isfinite(state[j])
+        if not finite or not (ev_state[0] > 0) or not (abs(angle(ev_state)) < half_pi):
+            code[i] = Outcome_LEFT_DOMAIN
+            detail[i] = 0 if not finite else (1 if not (ev_state[0] > 0) else 2)
+            return True
+        return False
 
     @njit
     def initial_step_size(y0, f0, f1, probe, rtol, atol):

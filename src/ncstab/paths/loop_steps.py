@@ -216,11 +216,12 @@ def steps_part(
         return x  # 0 or NaN
 
     @njit
-    def locate(column, h, phi0, phi1, y0, coefficients, fc0, fc1, ctl, lam_end, target_sign, turn_end,
-               orient, secondary, law, p, cos0, sin0, newton_tol, newton_max_iter, event_tol,
+    def locate(column, h, offset, span, phi0, phi1, y0, coefficients, fc0, fc1, ctl, lam_end, target_sign,
+               turn_end, orient, secondary, law, p, cos0, sin0, newton_tol, newton_max_iter, event_tol,
                ev, aux, values, state):
-        # events.locate_sign_changes, one pair: returns (sigma, lower, upper); state at sigma
-        lower, upper = 0.0, h
+        # events.locate_sign_changes, one pair: returns (sigma, lower, upper) in the piece
+        # (offset, offset + span) of the step of length h; state at sigma
+        lower, upper = 0.0, span
         f_lower, f_upper = phi0, phi1
         side = 0
         sigma = np.nan
@@ -234,7 +235,7 @@ def steps_part(
                 last_width = width
             if bisect:
                 candidate = 0.5 * (lower + upper)
-            dense_value(y0, coefficients, candidate / h, state)
+            dense_value(y0, coefficients, (offset + candidate) / h, state)
             value = indicator_at(state, column, fc0, fc1, ctl, lam_end, target_sign, turn_end, orient,
                                  secondary, law, p, cos0, sin0, newton_tol, newton_max_iter, ev, aux, values)
             sigma = candidate

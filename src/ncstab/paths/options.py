@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -37,8 +38,15 @@ class PathOptions:
         ``min(1e-3, max_step)`` (Hairer's starting-step algorithm,
         :func:`ncstab.paths.integrator.initial_step_size`); a number fixes it.
     min_step, max_step
-        Arclength step bounds.  ``max_step`` also bounds how far apart two
-        stored states can be (figure resolution, event detection).
+        Arclength step bounds of the integrator.
+    sample_step
+        The largest arclength between two stored states, and between two
+        checks of the indicators' signs (figure resolution, event detection):
+        each accepted step of length h is cut into ``ceil(h / sample_step)``
+        equal pieces on its DOP853 interpolant (7th order, projected onto
+        equilibrium for a law with a total form); every piece's end is stored
+        and its indicators checked, as a step's end is.  ``None``: ``max_step``
+        (every step one piece).
     max_steps
         Accepted steps per case over the whole programme before the case fails
         with ``failed:max_steps``.
@@ -61,14 +69,17 @@ class PathOptions:
     initial_step: float | str = "auto"
     min_step: float = 1e-12
     max_step: float = 0.02
+    sample_step: float | None = None
     max_steps: int = 20_000
     event_tol: float = 1e-10
     backend: str = "auto"
 
     def __post_init__(self) -> None:
-        for name in ("rtol", "atol", "newton_tol", "initial_step", "min_step", "max_step", "event_tol"):
+        for name in ("rtol", "atol", "newton_tol", "initial_step", "min_step", "max_step", "sample_step", "event_tol"):
             value = getattr(self, name)
             if name == "initial_step" and isinstance(value, str) and value == AUTO:
+                continue
+            if name == "sample_step" and value is None:
                 continue
             number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
             if not (number and 0 < value < float("inf")):
@@ -85,6 +96,23 @@ class PathOptions:
             )
         if self.min_step > self.max_step:
             raise ValueError("PathOptions.min_step must not exceed max_step")
+
+    @property
+    def stored_spacing(self) -> float:
+        """The largest arclength between two stored states: ``sample_step``, else ``max_step``."""
+        return self.max_step if self.sample_step is None else float(self.sample_step)
+
+    @property
+    def max_pieces(self) -> int:
+        """The most pieces a step is cut into: ``ceil(max_step / sample_step)`` (at least 1)."""
+        return max(1, math.ceil(self.max_step / self.stored_spacing))
+
+    def pieces(self, h: np.ndarray) -> np.ndarray:
+        """How many pieces steps of lengths ``h`` are cut into: ``ceil(h / sample_step)``,
+        between 1 and :attr:`max_pieces` (1 where h is not above ``sample_step``, or NaN)."""
+        h = np.asarray(h, dtype=float)
+        count = np.ceil(np.where(h > self.stored_spacing, h, self.stored_spacing) / self.stored_spacing)
+        return np.minimum(count, self.max_pieces).astype(np.int64)
 
 
 @dataclass(frozen=True)

@@ -37,6 +37,7 @@ from ncstab.paths.projection import advance
 from ncstab.paths.recorder import Recorder
 from ncstab.paths.rhs import Auxiliary, StateLayout, state_derivative
 from ncstab.paths.status import RUNNING
+from ncstab.paths.step_pieces import complete_in_pieces
 from ncstab.paths.tangent_field import StageArrays
 
 __all__ = ["BatchStepper", "follow_cases"]
@@ -191,7 +192,7 @@ class BatchStepper(CaseEnds):
         if steps is not None:
             steps = self._fail_outside_domain(steps)
         if steps is not None:
-            self._complete(steps)
+            complete_in_pieces(self, steps)
         return True
 
     def _take_steps(self, active: np.ndarray) -> AcceptedSteps | None:
@@ -257,8 +258,16 @@ class BatchStepper(CaseEnds):
             return None
         return steps.take(keep) if keep.size < steps.cases.size else steps
 
-    def _complete(self, steps: AcceptedSteps) -> None:
-        """Locate the steps' crossings, cut the steps, store events and states, end stages."""
+    def _complete(
+        self, steps: AcceptedSteps, counts_step: bool = True, ends_step: np.ndarray | bool = True
+    ) -> np.ndarray:
+        """Locate the steps' crossings, cut the steps, store events and states, end stages.
+
+        Where ``steps`` are pieces of longer steps (:mod:`ncstab.paths.step_pieces`),
+        ``counts_step`` says whether they are the first pieces (an accepted step
+        counted) and ``ends_step`` which are the last (where ``max_steps`` applies,
+        as at a cut).  Returns the mask of the steps cut short.
+        """
         indicators = indicators_at(steps.batch, steps.stage, steps.y_new, steps.aux, self.layout)
         before = self.indicators[steps.cases]
         target = self.columns.target
@@ -266,7 +275,7 @@ class BatchStepper(CaseEnds):
         change[:, target] = (before[:, target] < 0) & (indicators[:, target] >= 0)
         crossings = locate_crossings(
             steps.batch, steps.stage, change, before, indicators, steps.y_start, steps.y_raw,
-            steps.y_new, steps.h, steps.dop853_stages, self.layout, self.options,
+            steps.y_new, steps.h, steps.dop853_stages, self.layout, self.options, steps.piece,
         )
         self.located[steps.cases] += crossings.located
         drop_limit_points_at_bifurcations(self, crossings, steps.h)
@@ -279,24 +288,28 @@ class BatchStepper(CaseEnds):
         steps.y_new = steps.y_new.copy()
         if cut_rows.size:
             move_to_cut_points(self, steps, crossings, cut_rows, cut_column, indicators)
-        self._commit(steps, reach, indicators)
-        self._end_stages(steps.cases, is_cut, cut_column, indicators)
+        self._commit(steps, reach, indicators, counts_step)
+        self._end_stages(steps.cases, is_cut, cut_column, indicators, is_cut | ends_step)
+        return is_cut
 
-    def _commit(self, steps: AcceptedSteps, reach: np.ndarray, indicators: np.ndarray) -> None:
+    def _commit(self, steps: AcceptedSteps, reach: np.ndarray, indicators: np.ndarray, counts_step: bool) -> None:
         """The cases move to ``steps.y_new`` (arclength + ``reach``) and store it."""
         cases = steps.cases
         self.y[cases] = steps.y_new
         self.derivative[cases] = steps.dy_new
         self.arclength[cases] += reach
-        self.accepted[cases] += 1
+        if counts_step:
+            self.accepted[cases] += 1
         self.indicators[cases] = indicators
         self.stages.reference[cases] = steps.aux.tangent.motion()
         self.record(cases, steps.y_new, steps.aux, steps.stage)
 
     def _end_stages(
-        self, cases: np.ndarray, is_cut: np.ndarray, cut_column: np.ndarray, indicators: np.ndarray
+        self, cases: np.ndarray, is_cut: np.ndarray, cut_column: np.ndarray, indicators: np.ndarray,
+        ends_step: np.ndarray | bool = True,
     ) -> None:
-        """End the stage of ``cases`` at a stop event or its target; fail cases out of steps.
+        """End the stage of ``cases`` at a stop event or its target; fail cases out of steps
+        (where their step ends, ``ends_step``).
 
         A case that reached its target enters the next stage (and stores its
         state there again, see :func:`ncstab.paths.stage_entry.enter`).
@@ -308,7 +321,7 @@ class BatchStepper(CaseEnds):
         at_target = (cut_column == target) | (indicators[:, target] >= 0)
         target_hit = is_cut & ~stop_hit & at_target
         self.stop(cases[stop_hit], cut_column[stop_hit])
-        too_many = (self.accepted[cases] >= self.options.max_steps) & ~target_hit & ~stop_hit
+        too_many = (self.accepted[cases] >= self.options.max_steps) & ~target_hit & ~stop_hit & ends_step
         self.fail_max_steps(cases[too_many])
         self.enter_next_stage(cases[target_hit])
 

@@ -9,7 +9,7 @@ error (:mod:`ncstab.studies.errors`) naming the key and the estimate, raised
 before anything is computed.
 
 The size estimates (:func:`size_estimate`) are lower bounds for cases that
-run to the end of their programme: a stored state per ``max_step`` of driven
+run to the end of their programme: a stored state per ``sample_step`` of driven
 length at least (the arclength, in displacements and forces, is longer than
 the driven quantity's change), of the bytes the archive's variables take per
 state and per case; on disk, compressed to :data:`COMPRESSED_FRACTION`.
@@ -178,9 +178,9 @@ class SizeEstimate:
 def size_estimate(study: Study) -> SizeEstimate:
     """What a run of ``study`` stores, from the study file alone (:class:`SizeEstimate`).
 
-    Stored states of a case: 1 + (driven length of each stage) / ``max_step``
-    (:func:`~ncstab.studies.stage_extent.stage_extents`), at most
-    ``max_steps`` + 1; bytes: 8 per float of ``u``, ``F`` (n each), ``K``,
+    Stored states of a case: 1 + (driven length of each stage) / ``sample_step``
+    (``max_step`` where it is not set; :func:`~ncstab.studies.stage_extent.stage_extents`),
+    at most ``max_steps`` times the most pieces of a step, + 1; bytes: 8 per float of ``u``, ``F`` (n each), ``K``,
     ``K_sym``, ``K_skew`` (n^2 each) and the 12 scalars of a state, 4 for
     ``stage``; per case, the 6 events' located state and 12 bytes of counters.
     """
@@ -190,8 +190,8 @@ def size_estimate(study: Study) -> SizeEstimate:
     n = len(getattr(system, "dof_names", ("D1", "D2")))
     contacts = int(getattr(system, "n_contacts", 1))
     extents = stage_extents(study.programme.stages, study.parameters)
-    step = float(study.options.max_step)
-    cap = float(study.options.max_steps) + 1
+    step = float(study.options.stored_spacing)
+    cap = float(study.options.max_steps) * study.options.max_pieces + 1
     mean = 1.0 + sum(float(e.measured_from_rest.mean()) for e in extents) / step
     longest = 1.0 + max((float(e.measured_from_rest.max()) for e in extents), default=0.0) / step
     per_state = 8 * (2 * n + 3 * n * n + _STATE_SCALARS + 4 * (contacts - 1)) + 4

@@ -1,0 +1,131 @@
+"""The pieces of an accepted step: stored states and sign checks on its interpolant.
+
+``PathOptions.sample_step`` bounds how far apart two stored states are, and two
+checks of the indicators' signs, apart from the integrator's step: a step of
+length h is cut into ``ceil(h / sample_step)`` equal pieces.  The end of every
+piece but the last is the step's DOP853 interpolant there (7th order,
+:func:`ncstab.paths.integrator.dense_output`), projected onto equilibrium for a
+law with a total form; the last ends where the step does.  Each piece is then
+completed as a whole step is (:meth:`ncstab.paths.stepper.BatchStepper._complete`):
+its indicators' sign changes located on the step's interpolant, cut where a
+crossing ends the stage or switches a contact (the rest of the step dropped),
+its events stored, its end stored.  A step counts once towards ``max_steps``.
+Where an interior end does not project, the step is retried at half its length.
+
+The compiled stepper does the same in its loop (:mod:`ncstab.paths.loop_cases`).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ncstab.paths.accepted_steps import AcceptedSteps, Piece
+from ncstab.paths.integrator import dense_output, evaluate_dense
+from ncstab.paths.projection import project_finite
+from ncstab.paths.rhs import state_derivative
+from ncstab.paths.status import RUNNING
+
+if TYPE_CHECKING:  # pragma: no cover
+    from ncstab.paths.stepper import BatchStepper
+
+__all__ = ["complete_in_pieces"]
+
+
+def complete_in_pieces(stepper: BatchStepper, steps: AcceptedSteps) -> None:
+    """Complete the accepted ``steps``, each in ``options.pieces(h)`` pieces."""
+    options = stepper.options
+    if options.max_pieces == 1:
+        stepper._complete(steps)
+        return
+    pieces = options.pieces(steps.h)
+    whole = pieces == 1
+    if whole.all():
+        stepper._complete(steps)
+        return
+    if whole.any():
+        stepper._complete(steps.take(np.flatnonzero(whole)))
+        cut = np.flatnonzero(~whole)
+        steps, pieces = steps.take(cut), pieces[cut]
+    samples, projected = _interior_ends(stepper, steps, pieces)
+    retried = np.flatnonzero(~projected)
+    if retried.size:
+        _retry_shorter(stepper, steps.cases[retried], steps.h[retried])
+    alive = np.flatnonzero(projected)
+    offset = np.zeros(steps.cases.size)
+    for k in range(1, int(pieces.max()) + 1):
+        rows = alive[pieces[alive] >= k]
+        if rows.size == 0:
+            break
+        for last in (False, True):
+            group = rows[(pieces[rows] == k) == last]
+            if group.size == 0:
+                continue
+            end_at = steps.h[group] if last else steps.h[group] * k / pieces[group]
+            piece_steps = _piece(stepper, steps, group, samples, k, end_at - offset[group], offset[group], last)
+            if piece_steps is None:
+                continue
+            stage_before = stepper.stage_index[piece_steps.cases].copy()
+            is_cut = stepper._complete(piece_steps, counts_step=k == 1, ends_step=last)
+            # a piece cut short, a stage ended or a case ended: the rest of its step is dropped
+            going_on = piece_steps.cases[
+                ~is_cut & (stepper.status[piece_steps.cases] == RUNNING)
+                & (stepper.stage_index[piece_steps.cases] == stage_before)
+            ]
+            offset[group] = end_at
+            ended = group[~np.isin(steps.cases[group], going_on)]
+            alive = np.setdiff1d(alive, ended, assume_unique=True)
+
+
+def _interior_ends(stepper: BatchStepper, steps: AcceptedSteps, pieces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The steps' interpolant coefficients (kept in ``steps.piece``) and the ends of their
+    interior pieces ``(max pieces - 1, rows, m)``, projected for a total form; the mask of
+    the steps whose every interior end projected."""
+    layout = stepper.layout
+    batch, stage = steps.batch, steps.stage
+    coefficients = dense_output(
+        lambda yy: state_derivative(batch, stage, yy, layout)[0], steps.y_start, steps.y_raw, steps.h,
+        steps.dop853_stages,
+    )
+    steps.piece = Piece(coefficients, steps.y_start, steps.h, np.zeros(steps.cases.size))
+    samples = np.full((int(pieces.max()) - 1,) + steps.y_start.shape, np.nan)
+    projected = np.ones(steps.cases.size, dtype=bool)
+    for k in range(1, int(pieces.max())):
+        rows = np.flatnonzero(pieces > k)
+        y = evaluate_dense(steps.y_start[rows], coefficients[:, rows], k / pieces[rows])
+        if batch.has_total_form:
+            y, err, _ = project_finite(
+                batch.take(rows), stage.take(rows), y, np.zeros(rows.size), layout, stepper.options
+            )
+            projected[rows[~np.isfinite(err)]] = False
+        samples[k - 1, rows] = y
+    return samples, projected
+
+
+def _retry_shorter(stepper: BatchStepper, cases: np.ndarray, h: np.ndarray) -> None:
+    """Steps of ``cases`` whose interior ends did not project: retried at half length (a
+    rejected step; below ``min_step`` the case fails)."""
+    stepper.step_size[cases] = 0.5 * h
+    stepper.rejected[cases] += 1
+    stepper.fail_step_size_underflow(cases[stepper.step_size[cases] < stepper.options.min_step])
+
+
+def _piece(
+    stepper: BatchStepper, steps: AcceptedSteps, rows: np.ndarray, samples: np.ndarray, k: int,
+    span: np.ndarray, offset: np.ndarray, last: bool,
+) -> AcceptedSteps | None:
+    """Piece ``k`` of the steps ``rows`` as steps of their own (None where every one of
+    them left the domain at its end)."""
+    cases = steps.cases[rows]
+    batch, stage = steps.batch.take(rows), stepper.stages.take(cases)
+    piece = Piece(steps.piece.dense[:, rows], steps.y_start[rows], steps.h[rows], offset)
+    y_start = stepper.y[cases].copy()
+    if last:
+        return AcceptedSteps(
+            cases, batch, stage, y_start, span, None, None, steps.y_new[rows], steps.dy_new[rows],
+            steps.aux.take(rows), piece,
+        )
+    y_end = samples[k - 1, rows]
+    dy, aux = state_derivative(batch, stage, y_end, stepper.layout)
+    return stepper._fail_outside_domain(AcceptedSteps(cases, batch, stage, y_start, span, None, None, y_end, dy, aux, piece))
