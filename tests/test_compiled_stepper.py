@@ -117,8 +117,8 @@ PROGRAMMES = {
         # bounded here, it fails with max_steps on both steppers.
         PathOptions(max_steps=400),
     ),
-    # n_steps of the uniaxial cases is 17..48: some fail, some finish.
-    "max_steps": (IGNORE, UNIAXIAL, UNIAXIAL_GRID, PathOptions(max_steps=25)),
+    # With steps of at most 0.02, n_steps of the uniaxial cases is 17..48: some fail, some finish.
+    "max_steps": (IGNORE, UNIAXIAL, UNIAXIAL_GRID, PathOptions(max_steps=25, max_step=0.02)),
     # Delta_1 = 1.2 > cos(alpha0): the top grain would pass the chain's centre,
     # failed:left_domain.  Not gamma = 2: there McNamara and Turco go on to
     # l* -> 0 (K11 ~ 1e4), where the error norm amplifies rounding by ~1e6,

@@ -613,13 +613,13 @@ def test_stop_at_ends_the_case_on_the_located_event(preloaded):
 
 def test_max_steps_fails_the_case():
     path = follow(
-        IGNORE, "mcnamara", UNIAXIAL, {"gamma": 0.5, "alpha0": ALPHA0}, PathOptions(max_steps=5)
+        IGNORE, "mcnamara", UNIAXIAL, {"gamma": 0.5, "alpha0": ALPHA0}, PathOptions(max_steps=5, max_step=0.02)
     )
     result = path.results[0]
     assert path.status.tolist() == ["failed:max_steps"]
     assert "max_steps = 5" in path.message[0]
     assert result.counters["accepted"][0] == 5
-    assert result.n_steps[0] == 6  # the start and 5 accepted steps
+    assert result.n_steps[0] == 6  # the start and 5 accepted steps (of one piece each: h <= sample_step)
     assert np.all(np.isfinite(result.steps["u"][0]))
 
 

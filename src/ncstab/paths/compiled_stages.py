@@ -131,7 +131,10 @@ class CompiledStages:
                 break
             for k in np.unique(stepper.stage_index[active]):
                 stages = stepper.stages  # (entering a stage may replace it)
-                cases = active[stepper.stage_index[active] == k]
+                # (a case that ended, or failed entering its next stage, earlier in this pass stays out)
+                cases = active[(stepper.stage_index[active] == k) & (stepper.status[active] == RUNNING)]
+                if cases.size == 0:
+                    continue
                 recorder = stepper.recorder
                 # room for the next step's pieces of every case
                 pieces = stepper.options.pieces(np.minimum(stepper.step_size[cases], stepper.options.max_step))

@@ -38,7 +38,11 @@ class PathOptions:
         ``min(1e-3, max_step)`` (Hairer's starting-step algorithm,
         :func:`ncstab.paths.integrator.initial_step_size`); a number fixes it.
     min_step, max_step
-        Arclength step bounds of the integrator.
+        Arclength step bounds of the integrator.  ``max_step`` (0.1) also
+        bounds how far one step carries the path across a sharp turn (each
+        tangent is oriented by continuity with the motion at the start of its
+        step): on the stability diagram's soft cases (gamma = 0.1) steps of up
+        to 0.25 jumped out of the admissible domain where 0.1 does not.
     sample_step
         The largest arclength between two stored states, and between two
         checks of the indicators' signs (figure resolution, event detection):
@@ -46,7 +50,8 @@ class PathOptions:
         equal pieces on its DOP853 interpolant (7th order, projected onto
         equilibrium for a law with a total form); every piece's end is stored
         and its indicators checked, as a step's end is.  ``None``: ``max_step``
-        (every step one piece).
+        (every step one piece: the engine before ``sample_step``, whose
+        default ``max_step`` was 0.02).
     max_steps
         Accepted steps per case over the whole programme before the case fails
         with ``failed:max_steps``.
@@ -68,8 +73,8 @@ class PathOptions:
     newton_max_iter: int = 12
     initial_step: float | str = "auto"
     min_step: float = 1e-12
-    max_step: float = 0.02
-    sample_step: float | None = None
+    max_step: float = 0.1
+    sample_step: float | None = 0.02
     max_steps: int = 20_000
     event_tol: float = 1e-10
     backend: str = "auto"
