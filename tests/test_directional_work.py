@@ -59,6 +59,15 @@ def test_cone_bounds_are_exact_roots_and_width_matches_sampling(stiffness):
     assert width == pytest.approx(sampled, abs=4 * 2 * np.pi / 20000 + 1e-12)
 
 
+def test_a_denormal_skew_part_makes_no_cone_and_no_overflow_warning():
+    """Found by hypothesis on a fresh database: K = 2 I with K01 = 2.2e-308 (the
+    smallest normal double) gave -mean / radius an overflow warning."""
+    stiffness = np.array([[2.0, 2.2250738585072014e-308], [0.0, 2.0]])
+    width, lower, upper = unstable_cone(stiffness)  # (warnings are errors in the suite)
+    assert width == 0.0 and np.isnan(lower) and np.isnan(upper)
+    assert unstable_cone(-stiffness)[0] == pytest.approx(2 * np.pi)
+
+
 def test_cone_limits_and_batch_shapes():
     stable = np.eye(2)
     unstable = -np.eye(2)

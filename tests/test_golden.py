@@ -232,5 +232,5 @@ def test_with_todays_defaults_a_study_gives_the_golden_events_and_ends(study_fil
     same_stage = (stage[..., 1:] == stage[..., :-1]) & (stage[..., 1:] >= 0)
     assert np.nanmax(np.where(same_stage, np.diff(s, axis=-1), 0.0)) <= study.options.sample_step * (1 + 1e-12)
     own = tomllib.loads(study_file.read_text(encoding="utf-8")).get("options", {})
-    if "max_step" not in own:  # the default max_step went from 0.02 to 0.1: fewer steps
+    if "max_step" not in own:  # the default max_step went from 0.02 to 1: fewer steps
         assert int(computed["accepted_steps"].sum()) < int(golden["accepted_steps"].sum())

@@ -732,12 +732,16 @@ def test_no_tension_contact_opens_and_closes_as_located_switches(law_name):
     system: pulled apart from rest (where the contact touches, delta = 0) the
     contact opens (N = 0, never tension), pushed back it closes again; every
     stored state carries exactly the law's forces and no step is rejected at
-    the kink (the branch is frozen within a step, switched at the crossing)."""
+    the kink (the branch is frozen within a step, switched at the crossing).
+    Steps of at most 0.1: longer ones grow while the contact is open (the chain
+    moves force-free, the error is zero) and the first step on the closed branch
+    is then rejected for its length, not for the kink."""
     path = follow(
         SystemSpec(secondary_contacts="ignore"),
         law_name,
         [{"hold": {"F2": 0.0}, "drive": {"D1": -0.1}}, {"hold": {"F2": 0.0}, "drive": {"D1": 0.1}}],
         {"gamma": 0.5, "alpha0": ALPHA0},
+        PathOptions(max_step=0.1),
     )
     result, k = path.case(law_name)
     n = result.n_steps[k]
@@ -769,3 +773,27 @@ def test_stop_at_limit_point_still_records_the_coincident_hill_loss():
     assert result.events["hill_loss"]["found"][k]
     # Both located to event_tol = 1e-10 in arclength: they agree to 2 brackets.
     assert abs(result.events["hill_loss"]["s"][k] - result.events["limit_point"]["s"][k]) < 2e-10
+
+
+@pytest.mark.parametrize("backend", ["numpy", "compiled"])
+def test_a_long_step_past_a_target_near_the_domain_edge_finishes(backend):
+    """Soft Cundall-Strack (gamma = 0.1), F2* = 0, D1* driven to 0.6: alpha ends at
+    1.47, near pi/2.  A step of up to max_step = 1 reaches past the target, out of
+    the admissible domain; the target is crossed in an earlier piece of the step,
+    which ends the stage there: the case finishes (the end of a step is checked
+    against the domain only when its turn comes, PathOptions.sample_step), at the
+    state that steps of at most 0.02 reach.  Before, the step's end was checked
+    first and the case failed with left_domain."""
+    programme = [{"hold": {"F1": 0.0}, "drive": {"F2": 0.0}}, {"hold": {"F2": "current"}, "drive": {"D1": 0.6}}]
+    parameters = {"gamma": 0.1, "alpha0": ALPHA0}
+    long = follow(IGNORE, "cundall_strack", programme, parameters, PathOptions(max_step=1.0, backend=backend))
+    short = follow(IGNORE, "cundall_strack", programme, parameters, PathOptions(max_step=0.02, backend=backend))
+    assert long.status.tolist() == ["finished"] == short.status.tolist()
+    assert long.results[0].counters["accepted"][0] < short.results[0].counters["accepted"][0] / 3
+    end_long, end_short = (p.to_dataset().isel(law=0) for p in (long, short))
+    for name in ("u", "F", "alpha"):
+        a = end_long[name].isel(step=int(end_long["n_steps"]) - 1).values
+        b = end_short[name].isel(step=int(end_short["n_steps"]) - 1).values
+        # two integrations to rtol 1e-10 of one path (measured 1e-10): 1e-8
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-8, err_msg=name)
+    assert abs(float(end_long["alpha"].isel(step=int(end_long["n_steps"]) - 1))) > 1.4

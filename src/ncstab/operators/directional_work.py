@@ -84,7 +84,9 @@ def unstable_cone(stiffness: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nda
         padding of a path Dataset past a case's last state).
     """
     mean, radius, phi = second_order_work_form(stiffness)
-    with np.errstate(invalid="ignore", divide="ignore"):
+    # (a radius of a denormal's size overflows -mean / radius to an infinity: the
+    # cone is then everything or nothing, as for radius 0)
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         ratio = np.where(radius > 0, -mean / radius, np.where(mean < 0, np.inf, -np.inf))
     half_opening = np.arccos(np.clip(ratio, -1.0, 1.0))  # cos(2 theta - 2 phi) < -m/r
     width = np.where(ratio >= 1, 2 * np.pi, np.where(ratio <= -1, 0.0, 2 * (np.pi - half_opening)))

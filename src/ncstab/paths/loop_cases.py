@@ -135,9 +135,6 @@ def cases_part(
                         dy_new[j] = stages[_STAGES, j]
                 else:
                     rhs(y_new, fc0, fc1, ctl, orient, law, p, c0, s0, dy_new, ev_new, aux_new)
-                # --- _fail_outside_domain
-                if outside_domain(y_new, ev_new, code, detail, i):
-                    break
                 # --- the step's pieces (options.sample_step): the ends of all but the
                 # last on the step's interpolant, projected for a total form
                 pieces = piece_count(h, sample_step, max_pieces)
@@ -173,6 +170,11 @@ def cases_part(
                             ended = True
                             break
                     else:
+                        # --- _fail_outside_domain: the step's end, once the pieces before it
+                        # are done (a stage target or a stop inside them ends the case first)
+                        if outside_domain(y_new, ev_new, code, detail, i):
+                            ended = True
+                            break
                         end_at = h
                         for j in range(M):
                             y_end[j] = y_new[j]

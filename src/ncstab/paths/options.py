@@ -38,11 +38,9 @@ class PathOptions:
         ``min(1e-3, max_step)`` (Hairer's starting-step algorithm,
         :func:`ncstab.paths.integrator.initial_step_size`); a number fixes it.
     min_step, max_step
-        Arclength step bounds of the integrator.  ``max_step`` (0.1) also
-        bounds how far one step carries the path across a sharp turn (each
-        tangent is oriented by continuity with the motion at the start of its
-        step): on the stability diagram's soft cases (gamma = 0.1) steps of up
-        to 0.25 jumped out of the admissible domain where 0.1 does not.
+        Arclength step bounds of the integrator: by default (``max_step`` =
+        1) the steps are those the tolerances need; ``sample_step`` bounds the
+        spacing of stored states and sign checks.
     sample_step
         The largest arclength between two stored states, and between two
         checks of the indicators' signs (figure resolution, event detection):
@@ -73,7 +71,7 @@ class PathOptions:
     newton_max_iter: int = 12
     initial_step: float | str = "auto"
     min_step: float = 1e-12
-    max_step: float = 0.1
+    max_step: float = 1.0
     sample_step: float | None = 0.02
     max_steps: int = 20_000
     event_tol: float = 1e-10

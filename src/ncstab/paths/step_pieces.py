@@ -10,6 +10,10 @@ completed as a whole step is (:meth:`ncstab.paths.stepper.BatchStepper._complete
 its indicators' sign changes located on the step's interpolant, cut where a
 crossing ends the stage or switches a contact (the rest of the step dropped),
 its events stored, its end stored.  A step counts once towards ``max_steps``.
+Every piece's end is checked against the admissible domain when its turn
+comes, the step's end too: a stage target or a stop inside an earlier piece
+ends the case there, so a long step that overshoots a target lying near the
+domain's edge does not fail the case.
 Where an interior end does not project, the step is retried at half its length.
 
 The compiled stepper does the same in its loop (:mod:`ncstab.paths.loop_cases`).
@@ -36,16 +40,14 @@ __all__ = ["complete_in_pieces"]
 def complete_in_pieces(stepper: BatchStepper, steps: AcceptedSteps) -> None:
     """Complete the accepted ``steps``, each in ``options.pieces(h)`` pieces."""
     options = stepper.options
-    if options.max_pieces == 1:
-        stepper._complete(steps)
-        return
-    pieces = options.pieces(steps.h)
+    pieces = options.pieces(steps.h) if options.max_pieces > 1 else np.ones(steps.cases.size, dtype=np.int64)
     whole = pieces == 1
-    if whole.all():
-        stepper._complete(steps)
-        return
     if whole.any():
-        stepper._complete(steps.take(np.flatnonzero(whole)))
+        kept = stepper._fail_outside_domain(steps if whole.all() else steps.take(np.flatnonzero(whole)))
+        if kept is not None:
+            stepper._complete(kept)
+        if whole.all():
+            return
         cut = np.flatnonzero(~whole)
         steps, pieces = steps.take(cut), pieces[cut]
     samples, projected = _interior_ends(stepper, steps, pieces)
@@ -121,11 +123,12 @@ def _piece(
     batch, stage = steps.batch.take(rows), stepper.stages.take(cases)
     piece = Piece(steps.piece.dense[:, rows], steps.y_start[rows], steps.h[rows], offset)
     y_start = stepper.y[cases].copy()
-    if last:
-        return AcceptedSteps(
+    if last:  # the step's end, checked once the pieces before it are done
+        end = AcceptedSteps(
             cases, batch, stage, y_start, span, None, None, steps.y_new[rows], steps.dy_new[rows],
             steps.aux.take(rows), piece,
         )
+        return stepper._fail_outside_domain(end)
     y_end = samples[k - 1, rows]
     dy, aux = state_derivative(batch, stage, y_end, stepper.layout)
     return stepper._fail_outside_domain(AcceptedSteps(cases, batch, stage, y_start, span, None, None, y_end, dy, aux, piece))

@@ -190,9 +190,7 @@ class BatchStepper(CaseEnds):
             return False
         steps = self._take_steps(active)
         if steps is not None:
-            steps = self._fail_outside_domain(steps)
-        if steps is not None:
-            complete_in_pieces(self, steps)
+            complete_in_pieces(self, steps)  # (which fails the cases that left the domain)
         return True
 
     def _take_steps(self, active: np.ndarray) -> AcceptedSteps | None:
