@@ -3,8 +3,10 @@
 The study: the Cundall--Strack diamond, F2* held at 0 and Delta_1* driven from
 0 to 0.2, gamma in [0.1, 2] x alpha0 in [pi/6, pi/3] (``--cases-per-side``
 each, 64: 4,096 cases), secondary contacts ignored (the plain loop does not
-switch springs), **default options** (``max_step = 0.02``, ``backend =
-"auto"``: the compiled stepper, on every core).  The engine is timed as a
+switch springs), **default options** (``max_step = 1``: the steps the
+tolerance needs, stored states and sign checks at most ``sample_step = 0.02``
+apart on each step's interpolant; ``backend = "auto"``: the compiled stepper,
+on every core).  The engine is timed as a
 user runs it in Python: ``load_study`` + ``run_study`` (the Dataset built);
 the baseline is the loop of :mod:`bench_sweep_cundall_strack` (one
 ``solve_ivp`` DOP853 per case of the seed's Eq. 38, the same rtol/atol), and
@@ -17,6 +19,7 @@ happens before the timed runs and is reported apart.  A benchmark, not a test:
 nothing here asserts a time.
 
 Run:  python benchmarks/bench_default_engine.py [--cases-per-side 64] [--repeat 3] [--threads 1 2]
+      [--compare "max_step = 0.02; sample_step = 0.02"]  (also the defaults before sample_step, same run)
 """
 
 from __future__ import annotations
@@ -53,10 +56,12 @@ drive = {{ D1 = {target} }}
 """
 
 
-def run_engine(side: int):
-    """load_study + run_study; the Dataset and the end (D2, F1) per case."""
+def run_engine(side: int, options: str = ""):
+    """load_study + run_study; the Dataset and the end (D2, F1) per case.  ``options``:
+    lines of an ``[options]`` table (none: the defaults)."""
     path = Path(tempfile.gettempdir()) / f"ncstab_bench_default_engine_{side}.toml"
-    path.write_text(STUDY.format(side=side, target=TARGET), encoding="utf-8")
+    text = STUDY.format(side=side, target=TARGET) + (f"[options]\n{options}\n" if options else "")
+    path.write_text(text, encoding="utf-8")
     dataset = run_study(load_study(path))
     last = dataset["n_steps"].values.ravel() - 1
     rows = np.arange(last.size)
@@ -72,7 +77,11 @@ def main() -> None:
     parser.add_argument("--threads", type=int, nargs="+", default=[1, 2])
     parser.add_argument("--check", type=int, default=64, help="cases checked against the tight reference")
     parser.add_argument("--no-baseline", action="store_true", help="engine only (large sweeps)")
+    parser.add_argument("--compare", default="", metavar="OPTIONS",
+                        help='also time the engine with these [options] lines, e.g. "max_step = 0.02; sample_step = 0.02" '
+                             "(the defaults before sample_step)")
     args = parser.parse_args()
+    compared = "\n".join(part.strip() for part in args.compare.split(";") if part.strip())
     side = args.cases_per_side
     start = time.perf_counter()
     run_engine(2)  # sympy derivation and numba compilation (or the cached loop)
@@ -83,16 +92,23 @@ def main() -> None:
                                                      indexing="ij"))
     times: dict[str, list[float]] = {f"engine, {n} thread(s)": [] for n in args.threads}
     cpu: dict[str, list[float]] = {key: [] for key in times}
+    if compared:
+        run_engine(2, compared)
+        for n in args.threads:
+            times[f"[{args.compare}], {n} thread(s)"] = []
+            cpu[f"[{args.compare}], {n} thread(s)"] = []
     if not args.no_baseline:
         times["solve_ivp loop"] = []
     for _ in range(args.repeat):  # interleaved: a slow spell of the machine hits every method
         for n in args.threads:
-            key = f"engine, {n} thread(s)"
-            with using_threads(n):
-                wall, process = time.perf_counter(), time.process_time()
-                run_engine(side)
-                times[key].append(time.perf_counter() - wall)
-                cpu[key].append(time.process_time() - process)
+            for key, options in ((f"engine, {n} thread(s)", ""), (f"[{args.compare}], {n} thread(s)", compared)):
+                if key not in times:
+                    continue
+                with using_threads(n):
+                    wall, process = time.perf_counter(), time.process_time()
+                    run_engine(side, options)
+                    times[key].append(time.perf_counter() - wall)
+                    cpu[key].append(time.process_time() - process)
         if not args.no_baseline:
             wall = time.perf_counter()
             baseline_end = run_baseline(gamma, alpha0, 1e-10, 1e-12)

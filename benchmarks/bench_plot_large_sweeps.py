@@ -2,7 +2,7 @@
 
 The archives: the programme of ``studies/stability_diagram.toml`` (lateral
 preload F2*, then Delta1* driven to 0.6 with F2 held), Cundall--Strack, on
-cheap options (``max_step = 0.3``: a handful of stored states per case, events
+cheap options (``max_step = sample_step = 0.3``: a handful of stored states per case, events
 still located to ``event_tol``), swept
 
 * in 2-D: gamma x F2_lateral on 64 x 64 (4,096 cases) and 256 x 256 (65,536):
@@ -66,6 +66,7 @@ hold = {{ F2 = "current" }}
 drive = {{ D1 = 0.6 }}
 [options]
 max_step = 0.3
+sample_step = 0.3
 """
 KINDS = ("load_displacement", "load_rotation", "load_displacement_rotation", "stability")
 

@@ -2,7 +2,7 @@
 
 The problem: the programme of ``studies/stability_diagram.toml`` (lateral
 preload F2* from rest with F1 held at 0, then Delta_1* driven to 0.6 with F2*
-held; alpha0 = pi/4, secondary contacts ignored, max_step = 0.05) for one law
+held; alpha0 = pi/4, secondary contacts ignored, sample_step = 0.05) for one law
 over a side x side grid of gamma in [0.1, 2] x F2* in [0, 0.8]; by default
 256 x 256 = 65,536 cases, followed in-process with :func:`ncstab.follow`.
 
@@ -71,7 +71,7 @@ def main(argv: list[str] | None = None) -> None:
             [args.law],
             PROGRAMME,
             {"gamma": gamma.tolist(), "F2_lateral": lateral.tolist(), "alpha0": math.pi / 4},
-            PathOptions(max_step=0.05),
+            PathOptions(sample_step=0.05),
         )
         times.append(time.perf_counter() - start)
     elapsed = statistics.median(times)

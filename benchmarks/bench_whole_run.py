@@ -61,6 +61,7 @@ drive = {{ D1 = {target} }}
 rtol = 1e-10
 atol = 1e-12
 max_step = 1.0
+sample_step = 1.0
 backend = "{backend}"
 
 [output]
