@@ -26,6 +26,7 @@ from scipy.optimize import brentq, minimize_scalar, newton, root
 from ncstab import DiamondChain, make_law
 from ncstab.operators import generalized_forces, tangent_operator
 from ncstab.paths import PathOptions, SystemSpec, follow
+from ncstab.paths.programme import EVENTS
 
 ALPHA0 = np.pi / 4
 IGNORE = SystemSpec(secondary_contacts="ignore")
@@ -797,3 +798,41 @@ def test_a_long_step_past_a_target_near_the_domain_edge_finishes(backend):
         # two integrations to rtol 1e-10 of one path (measured 1e-10): 1e-8
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-8, err_msg=name)
     assert abs(float(end_long["alpha"].isel(step=int(end_long["n_steps"]) - 1))) > 1.4
+
+
+def test_sign_checks_every_sample_step_find_what_long_steps_miss():
+    """Weakly hypoelastic, lateral preload F2* = 0.6 then D1* driven to 0.6, F2 held:
+    at gamma = 0.5, alpha0 = 0.6 the mixed control is lost where the driven D1* turns
+    back (controllability_loss and turning_point at one point, s = 2.2592).  With
+    steps of up to 1 and their ends the only sign checks (``sample_step`` unset),
+    the engine reports a limit_point there instead of the turning point, and the
+    case gamma = 0.1, alpha0 = pi/4 fails (left_domain) where it finishes.  With
+    the default sampling (sign checks and stored states every 0.02 on the same long
+    steps) every case's status and every event found are those of a tight
+    reference (steps of at most 0.002, rtol 1e-12), and the events' arclengths
+    agree: hill_loss to 1e-9 (measured 2e-11); the two events at the fold of
+    D1* to 5e-6 (measured 5e-7, as for steps of at most 0.02 stored once, and
+    7e-7 for the default sampling at rtol 1e-12: where the driven quantity turns
+    back, its crossing's place along the path is ill-conditioned)."""
+    programme = [{"hold": {"F1": 0.0}, "drive": {"F2": 0.6}}, {"hold": {"F2": "current"}, "drive": {"D1": 0.6}}]
+    parameters = {"gamma": [0.1, 0.5], "alpha0": [0.6, ALPHA0]}
+
+    def run(options):
+        return follow(IGNORE, "weakly_hypoelastic", programme, parameters, options).to_dataset().isel(law=0)
+
+    reference = run(PathOptions(max_step=0.002, sample_step=None, rtol=1e-12, atol=1e-14))
+    default = run(PathOptions())
+    only_steps = run(PathOptions(max_step=1.0, sample_step=None))
+    assert default["accepted_steps"].sum() < reference["accepted_steps"].sum() / 10
+    events = [name for name in EVENTS if f"{name}_stage" in reference]
+    found = {name: reference[f"{name}_stage"].values >= 0 for name in events}
+    assert found["turning_point"][1, 0] and found["controllability_loss"][1, 0] and not found["limit_point"].any()
+    np.testing.assert_array_equal(default["status"].values, reference["status"].values)
+    for name in events:
+        np.testing.assert_array_equal(default[f"{name}_stage"].values >= 0, found[name], err_msg=name)
+        at_fold = name in ("controllability_loss", "turning_point")
+        np.testing.assert_allclose(default[f"{name}_s"].values, reference[f"{name}_s"].values, rtol=0,
+                                   atol=5e-6 if at_fold else 1e-9, err_msg=name)
+    # what the sampling is for: the long steps alone report another event and lose a case
+    assert (only_steps["limit_point_stage"].values >= 0).any() and not found["limit_point"].any()
+    assert not np.array_equal(only_steps["status"].values, reference["status"].values)
