@@ -66,7 +66,8 @@ def complete_in_pieces(stepper: BatchStepper, steps: AcceptedSteps) -> None:
                 continue
             end_at = steps.h[group] if last else steps.h[group] * k / pieces[group]
             piece_steps = _piece(stepper, steps, group, samples, k, end_at - offset[group], offset[group], last)
-            if piece_steps is None:
+            if piece_steps is None:  # every one of them left the domain there: failed
+                alive = np.setdiff1d(alive, group, assume_unique=True)
                 continue
             stage_before = stepper.stage_index[piece_steps.cases].copy()
             is_cut = stepper._complete(piece_steps, counts_step=k == 1, ends_step=last)
