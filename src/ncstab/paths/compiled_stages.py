@@ -29,9 +29,10 @@ if TYPE_CHECKING:
 
 __all__ = ["STEPS_PER_CALL", "CompiledStages", "control_rows"]
 
-#: Room the recorder must have per case before a call, in steps (each of at
-#: most ``options.max_pieces`` stored states): a case whose steps fill the
-#: recorder pauses, the recorder grows and the next call goes on from there.
+#: Room the recorder must have per case before a call, in steps (each storing
+#: ``options.pieces`` of its length: the next step's, estimated from the step
+#: size): a case whose steps would overfill the recorder pauses, the recorder
+#: grows and the next call goes on from there.
 STEPS_PER_CALL = 1
 
 
