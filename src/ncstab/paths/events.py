@@ -46,6 +46,7 @@ __all__ = [
     "TURNING_COLUMN",
     "indicator_values",
     "locate_sign_changes",
+    "signs_kept",
 ]
 
 @dataclass(frozen=True)
@@ -255,6 +256,32 @@ def _flutter_onset(mass: np.ndarray, damping: np.ndarray | None, stiffness: np.n
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         values = flutter_onset_indicator(mass, damping, stiffness)
     return values
+
+
+def signs_kept(before: np.ndarray, after: np.ndarray, target: int) -> np.ndarray:
+    """The indicators a case keeps for its next sign comparison: ``after``, except
+    that a value without a sign (exactly 0: within rounding of zero, see
+    :func:`indicator_values`) keeps the value before it, the last that had one.
+
+    A stored state may land on an indicator's root (Ziegler's follower pendulum
+    stepped by 0.01 in P meets Hill's condition's loss at P = 2 exactly): the
+    signs along the path are then +, 0, -, and neither comparison of
+    neighbours is a change.  With the last sign kept, the step that leaves the
+    zero is one (+ before, - after), and its crossing is located at the zero,
+    the step's start.  An indicator that returns to its sign after zeros
+    (a double root touched) changes nothing.  The stage target's column
+    (``target``) is compared as it is (reached at 0).
+
+    Parameters
+    ----------
+    before, after
+        ``(B, columns)``: the values kept at the step's start, and the values at its end.
+    target
+        Column of the stage target.
+    """
+    unsigned = after == 0
+    unsigned[:, target] = False
+    return np.where(unsigned, before, after)
 
 
 def locate_sign_changes(

@@ -293,8 +293,9 @@ def cases_part(
                     )
                     for k in range(5):
                         reference[i, k] = orient[1 + k]
-                    for c in range(n_columns):
-                        indicator_table[i, c] = after[c]
+                    for c in range(n_columns):  # events.signs_kept: a value without a sign keeps the last
+                        if after[c] != 0 or c == target_column:
+                            indicator_table[i, c] = after[c]
                     store_record(recorded, i, record_count[i], arclength[i], stage_number, y_end, ev_end, aux_end)
                     record_count[i] += 1
                     # _end_stages

@@ -31,6 +31,7 @@ from ncstab.paths.cut_points import cut_points, drop_limit_points_at_bifurcation
 from ncstab.paths.cycle_turns import CycleTurns
 from ncstab.paths.engine_choice import choose_engine
 from ncstab.paths.integrator import END_STAGE, step_factor
+from ncstab.paths.events import signs_kept
 from ncstab.paths.options import AUTO, PathOptions
 from ncstab.paths.programme import LoadingProgramme
 from ncstab.paths.projection import advance
@@ -298,7 +299,7 @@ class BatchStepper(CaseEnds):
         self.arclength[cases] += reach
         if counts_step:
             self.accepted[cases] += 1
-        self.indicators[cases] = indicators
+        self.indicators[cases] = signs_kept(self.indicators[cases], indicators, self.columns.target)
         self.stages.reference[cases] = steps.aux.tangent.motion()
         self.record(cases, steps.y_new, steps.aux, steps.stage)
 
