@@ -727,6 +727,44 @@ def test_secondary_contact_activate_adds_the_spring_and_continues():
         np.testing.assert_allclose(states["K"][on_kink, 0, 0], law_tangent[on_kink, 0, 0] + 2 * kappa, rtol=0, atol=1e-10)
 
 
+@pytest.mark.parametrize("backend", ["numpy", "compiled"])
+def test_a_contact_that_opens_at_a_corner_follows_the_open_branch_into_its_side(backend):
+    """McNamara, gamma = 0.79, F2* = 0.58 held, D1* driven to 0.6: the left-right pair,
+    closed since the preload, opens at D1* = 0.5994 where Delta2* comes back to
+    sin(alpha0) - 1/2.  There the motion kept through the switch (F1* rising) would lead
+    straight back into the closed side: F1* peaks at the corner and the open branch
+    goes on with F1* falling.  The contacts chattered there (a step of ~event_tol each,
+    ``max_steps`` spent, s stuck at 3.783251); now the open branch is followed into
+    its own side to the target.  Checked against the model, not the engine: every
+    stored state in equilibrium (law forces + the springs of the closed pairs,
+    kappa <overlap>, EQUILIBRIUM_TOL), the pair open (overlap <= 0, to the gap's located 1e-9) at
+    every state past the switch, and F1* falling there."""
+    gamma, preload = 0.7909090909090909, 0.5818181818181819
+    path = follow(
+        SystemSpec(secondary_contacts="activate"),
+        "mcnamara",
+        [{"hold": {"F1": 0.0}, "drive": {"F2": preload}}, {"hold": {"F2": "current"}, "drive": {"D1": 0.6}}],
+        {"gamma": gamma, "alpha0": ALPHA0},
+        PathOptions(max_steps=2000, backend=backend),
+    )
+    states, _, status = case_states(path, "mcnamara")
+    assert status == "finished"
+    u, F = states["u"], states["F"]
+    assert abs(u[-1, 0] - 0.6) < 1e-9
+    law = make_law("mcnamara", gamma=gamma, alpha0=ALPHA0)
+    overlap = 1 - 2 * (np.sin(ALPHA0) - u[:, 1])  # the left-right pair, kappa = 1
+    open_at = int(np.flatnonzero(overlap > 1e-9)[-1]) + 1  # the corner, the open branch's first state
+    assert 0.59 < u[open_at, 0] < 0.6 and (overlap[:open_at] > 0.0).sum() > 10
+    assert (overlap[open_at:] <= 1e-9).all() and (overlap[-1] < -1e-3)
+    # kappa = 1 on each closed pair: the top-bottom one closes in stage 2 (D1* > 0.207)
+    expected = generalized_forces(DiamondChain(alpha0=ALPHA0), law, u)
+    expected[:, 0] += np.maximum(1 - 2 * (np.cos(ALPHA0) - u[:, 0]), 0.0)
+    expected[:, 1] += np.maximum(overlap, 0.0)
+    np.testing.assert_allclose(F, expected, rtol=0, atol=EQUILIBRIUM_TOL)
+    np.testing.assert_allclose(F[states["stage"] == 1, 1], preload, rtol=0, atol=EQUILIBRIUM_TOL)
+    assert int(np.argmax(F[:, 0])) == open_at and (np.diff(F[open_at:, 0]) < 0).all()  # F1* peaks at the corner
+
+
 @pytest.mark.parametrize("law_name", ["mcnamara+no_tension", "turco+no_tension"])
 def test_no_tension_contact_opens_and_closes_as_located_switches(law_name):
     """The no_tension kink (seed Eq. 59) is integrated as a piecewise-smooth

@@ -124,7 +124,7 @@ def switch_contacts_at(stepper: BatchStepper, steps: AcceptedSteps, closing: np.
     bits = np.asarray(stepper.columns.switch_bits)[cut_column[closing]]
     switched = steps.stage.take(closing)
     steps.y_new[closing], flip = switch_contacts(
-        steps.batch.take(closing), switched, steps.y_new[closing], bits, stepper.layout
+        steps.batch.take(closing), switched, steps.y_new[closing], bits, cut_column[closing], stepper.layout
     )
     steps.stage.secondary_state[closing] = switched.secondary_state
     stepper.stages.secondary_state[steps.cases[closing]] = switched.secondary_state

@@ -23,18 +23,21 @@ from ncstab.paths.compiled import (
     Outcome,
     StageLoop,
 )
+from ncstab.paths.contacts import ENTRY_NOISE, ENTRY_PROBE
 from ncstab.paths.events import CYCLE_COLUMN, INDICATOR_GAP, TARGET_COLUMN
 
 __all__ = ["cases_part"]
 
 
 def cases_part(
-    rate_form, M, angle, dense_coefficients, dense_value, dop853, indicators, locate, motion, motion_product,
-    n_columns, njit, project, rhs, sign, state_slot, store_event, store_record, target_column,
+    rate_form, M, angle, dense_coefficients, dense_value, dop853, indicators, initial_step_size, locate, motion,
+    motion_product, n_columns, njit, piece_count, project, rhs, sign, state_slot, store_event, store_record,
+    target_column,
 ) -> StageLoop:
     """Define ``run_cases`` and ``start`` and return them (a template: see the module docstring)."""
     half_pi = math.pi / 2
     cycle_column = CYCLE_COLUMN
+    entry_probe, entry_noise = ENTRY_PROBE, ENTRY_NOISE
     cut_always = np.array([c in (TARGET_COLUMN, CYCLE_COLUMN) or BREAK_ALWAYS[c] for c in range(_N_COLUMNS)])
     switch_bits = np.array(INDICATOR_GAP, dtype=np.int64)
     Outcome_PAUSED, Outcome_TARGET, Outcome_STOPPED = Outcome.PAUSED, Outcome.TARGET, Outcome.STOPPED
@@ -250,7 +253,7 @@ def cases_part(
                             y_end[j] = located_states[cut_column, j]
                         switching = break_row[cut_column]
                         kept = 0.0
-                        if switching:  # cut_points.switch_contacts_at: the direction of motion is kept
+                        if switching:  # cut_points.switch_contacts_at (contacts.switch_contacts)
                             plain[0] = orient[0]
                             rhs(y_end, fc0, fc1, ctl, plain, law, p, c0, s0, work[2], ev, aux)
                             motion(ev, aux, motion_before)
@@ -258,7 +261,21 @@ def cases_part(
                             p[state_slot] = sec
                             secondary_state[i] = sec
                             rhs(y_end, fc0, fc1, ctl, plain, law, p, c0, s0, work[2], ev, aux)
-                            if motion_product(motion_before, ev, aux) < 0:
+                            flip = motion_product(motion_before, ev, aux) < 0  # the motion kept
+                            # the new branch into its own side: the crossed indicator's central
+                            # difference along the new tangent, where it tells
+                            rate = 0.0
+                            for side in (1.0, -1.0):
+                                for j in range(M):
+                                    work[0, j] = y_end[j] + side * entry_probe * work[2, j]
+                                rhs(work[0], fc0, fc1, ctl, plain, law, p, c0, s0, work[1], ev, aux)
+                                indicators(ev, aux, work[0, 2], fc0, fc1, lam_end[i], target_sign[i], turn_end,
+                                           sec, values)
+                                rate += side * values[cut_column]
+                            if abs(rate) > entry_noise:
+                                own_side = -1.0 if (sec & switch_bits[cut_column]) > 0 else 1.0
+                                flip = rate * own_side < 0
+                            if flip:
                                 orient[0] = -orient[0]
                                 orientation[i] = orient[0]
                             for k in range(5):  # the motion continues from the switch: no reference across it
@@ -322,13 +339,6 @@ def cases_part(
                     break
 
     @njit
-    def piece_count(h, sample_step, max_pieces):
-        # options.PathOptions.pieces: ceil(h / sample_step), between 1 and max_pieces
-        if not (h > sample_step):
-            return 1
-        return min(int(np.ceil(h / sample_step)), max_pieces)
-
-    @njit
     def outside_domain(state, ev_state, code, detail, i):
         # stepper._fail_outside_domain, one state: sets code and detail where it left the domain
         finite = np.isfinite(ev_state[4]) and np.isfinite(ev_state[5])
@@ -339,26 +349,6 @@ def cases_part(
             detail[i] = 0 if not finite else (1 if not (ev_state[0] > 0) else 2)
             return True
         return False
-
-    @njit
-    def initial_step_size(y0, f0, f1, probe, rtol, atol):
-        # integrator.initial_step_size, one case (np.mean over m: a sum in order, then / m)
-        s1 = 0.0
-        s2 = 0.0
-        for j in range(M):
-            scale = atol + abs(y0[j]) * rtol
-            a = f0[j] / scale
-            b = (f1[j] - f0[j]) / scale
-            s1 += a * a
-            s2 += b * b
-        d1 = np.sqrt(s1 / M)
-        d2 = np.sqrt(s2 / M) / probe
-        largest = np.nan if (np.isnan(d1) or np.isnan(d2)) else max(d1, d2)
-        if not np.isfinite(largest):
-            return probe
-        if largest <= 1e-15:
-            return min(100 * probe, max(1e-6, 1e-3 * probe))
-        return min(100 * probe, np.sqrt(np.sqrt(np.sqrt(0.01 / largest))))
 
     @numba.njit(cache=False, error_model="numpy")
     def start(cases, y, derivative, indicator_table, arclength, force_controlled, control_rows, lam_end,

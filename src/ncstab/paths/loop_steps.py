@@ -305,6 +305,33 @@ def steps_part(
         row[15] = ev[9]
 
     @njit
+    def piece_count(h, sample_step, max_pieces):
+        # options.PathOptions.pieces: ceil(h / sample_step), between 1 and max_pieces
+        if not (h > sample_step):
+            return 1
+        return min(int(np.ceil(h / sample_step)), max_pieces)
+
+    @njit
+    def initial_step_size(y0, f0, f1, probe, rtol, atol):
+        # integrator.initial_step_size, one case (np.mean over m: a sum in order, then / m)
+        s1 = 0.0
+        s2 = 0.0
+        for j in range(M):
+            scale = atol + abs(y0[j]) * rtol
+            a = f0[j] / scale
+            b = (f1[j] - f0[j]) / scale
+            s1 += a * a
+            s2 += b * b
+        d1 = np.sqrt(s1 / M)
+        d2 = np.sqrt(s2 / M) / probe
+        largest = np.nan if (np.isnan(d1) or np.isnan(d2)) else max(d1, d2)
+        if not np.isfinite(largest):
+            return probe
+        if largest <= 1e-15:
+            return min(100 * probe, max(1e-6, 1e-3 * probe))
+        return min(100 * probe, np.sqrt(np.sqrt(np.sqrt(0.01 / largest))))
+
+    @njit
     def dop853(y0, f0, h, rtol, atol, fc0, fc1, ctl, orient, law, p, cos0, sin0, stages, y1, work, ev,
                aux):
         # integrator.dop853_step; leaves ev, aux at the end state y1 (its last stage)
