@@ -766,6 +766,29 @@ def test_a_contact_that_opens_at_a_corner_follows_the_open_branch_into_its_side(
 
 
 @pytest.mark.parametrize("law_name", ["mcnamara+no_tension", "turco+no_tension"])
+def test_a_no_tension_contact_pulled_by_a_force_fails_with_a_singular_control(law_name):
+    """F2* driven to -0.3 (tension) with F1* held: the normal contact, touching at rest,
+    opens at once, and on its open branch no force can be carried (N = 0, T = 0 at
+    rest: K is singular, det of the force-controlled block 0).  The case fails
+    there with ``singular_control``, on both steppers alike, the switch state
+    stored (F = 0).  Before, the path ran off along the open branch (u* of -200
+    with F = 0) until ``max_steps``, storing up to 50 states per step."""
+    messages = []
+    for backend in ("numpy", "compiled"):
+        path = follow(
+            SystemSpec(secondary_contacts="activate"), law_name, [{"hold": {"F1": 0.0}, "drive": {"F2": -0.3}}],
+            {"gamma": [0.5, 2.0], "alpha0": ALPHA0}, PathOptions(max_steps=50, backend=backend),
+        )
+        for gamma in (0.5, 2.0):
+            states, _, status = case_states(path, law_name, gamma=gamma)
+            assert status == "failed:singular_control"
+            assert len(states["s"]) == 2 and np.abs(states["F"]).max() < 1e-12
+            result, k = path.case(law_name, gamma=gamma)
+            messages.append(str(result.message[k]))
+    assert len(set(messages)) == 1 and messages[0].startswith("stage 1: a contact switch led onto a branch")
+
+
+@pytest.mark.parametrize("law_name", ["mcnamara+no_tension", "turco+no_tension"])
 def test_no_tension_contact_opens_and_closes_as_located_switches(law_name):
     """The no_tension kink (seed Eq. 59) is integrated as a piecewise-smooth
     system: pulled apart from rest (where the contact touches, delta = 0) the

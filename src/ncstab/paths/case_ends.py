@@ -66,6 +66,19 @@ class CaseEnds:
                 f"{self.stage_index[which[0]] + 1}",
             )
 
+    def fail_singular_branch(self, cases: np.ndarray) -> None:
+        """Cases ``cases`` fail: a contact switch led onto a branch where their control is
+        singular (the control determinant 0 within rounding, so the driven quantity stays
+        put while the state runs off along the branch's null direction)."""
+        for number in np.unique(self.stage_index[cases]):
+            self.fail(
+                cases[self.stage_index[cases] == number],
+                "singular_control",
+                f"stage {number + 1}: a contact switch led onto a branch where the control is singular (det of "
+                "the force-controlled block of K is 0): the driven quantity cannot go on (a no_tension contact "
+                "opened under a force it cannot carry, say)",
+            )
+
     def stop(self, cases: np.ndarray, columns: np.ndarray) -> None:
         """Cases ``cases`` stop at the stop event of indicator column ``columns`` (per case)."""
         for column in np.unique(columns):

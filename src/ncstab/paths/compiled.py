@@ -111,6 +111,7 @@ class Outcome:
     STEP_SIZE_UNDERFLOW = 3
     LEFT_DOMAIN = 4  #: reason returned: 0 non-finite, 1 l* <= 0, 2 alpha
     MAX_STEPS = 5
+    SINGULAR_BRANCH = 6  #: a contact switch led onto a branch whose control is singular
 
 
 _N_COLUMNS = len(INDICATOR_EVENTS)

@@ -79,7 +79,7 @@ from ncstab.paths.compiled import (
     KAPPA_SLOT, STATE_SLOT, Outcome, StageLoop, _terms,
 )
 from ncstab.paths.contacts import ENTRY_NOISE, ENTRY_PROBE
-from ncstab.paths.events import CYCLE_COLUMN, INDICATOR_GAP, SIGN_NOISE, TARGET_COLUMN, TINY, TURNING_COLUMN
+from ncstab.paths.events import CYCLE_COLUMN, INDICATOR_EVENTS, INDICATOR_GAP, SIGN_NOISE, TARGET_COLUMN, TINY, TURNING_COLUMN
 
 rate_form = {rate_form!r}
 '''

@@ -232,6 +232,7 @@ class CompiledStages:
         outside = code == Outcome.LEFT_DOMAIN
         stepper.fail_outside_domain(cases[outside], np.asarray(DOMAIN_REASONS)[detail[outside]])
         stepper.fail_max_steps(cases[code == Outcome.MAX_STEPS])
+        stepper.fail_singular_branch(cases[code == Outcome.SINGULAR_BRANCH])
         stepper.enter_next_stage(cases[code == Outcome.TARGET])
 
     @staticmethod

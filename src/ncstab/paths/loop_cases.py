@@ -24,7 +24,7 @@ from ncstab.paths.compiled import (
     StageLoop,
 )
 from ncstab.paths.contacts import ENTRY_NOISE, ENTRY_PROBE
-from ncstab.paths.events import CYCLE_COLUMN, INDICATOR_GAP, TARGET_COLUMN
+from ncstab.paths.events import CYCLE_COLUMN, INDICATOR_EVENTS, INDICATOR_GAP, TARGET_COLUMN
 
 __all__ = ["cases_part"]
 
@@ -42,7 +42,8 @@ def cases_part(
     switch_bits = np.array(INDICATOR_GAP, dtype=np.int64)
     Outcome_PAUSED, Outcome_TARGET, Outcome_STOPPED = Outcome.PAUSED, Outcome.TARGET, Outcome.STOPPED
     Outcome_STEP_SIZE_UNDERFLOW, Outcome_LEFT_DOMAIN = Outcome.STEP_SIZE_UNDERFLOW, Outcome.LEFT_DOMAIN
-    Outcome_MAX_STEPS = Outcome.MAX_STEPS
+    Outcome_MAX_STEPS, Outcome_SINGULAR_BRANCH = Outcome.MAX_STEPS, Outcome.SINGULAR_BRANCH
+    control_column = INDICATOR_EVENTS.index("controllability_loss")
 
     @numba.njit(cache=False, error_model="numpy", nogil=True)
     def run_cases(cases, y, derivative, indicator_table, step_size, arclength, accepted, rejected, located,
@@ -232,6 +233,7 @@ def cases_part(
                             cut_column = c
                     is_cut = np.isfinite(cut_sigma)
                     reach = cut_sigma if is_cut else span
+                    switched = False
                     # _store_first_events
                     for e in range(event_columns.shape[0]):
                         best = np.inf
@@ -252,6 +254,7 @@ def cases_part(
                         for j in range(M):
                             y_end[j] = located_states[cut_column, j]
                         switching = break_row[cut_column]
+                        switched = switching
                         kept = 0.0
                         if switching:  # cut_points.switch_contacts_at (contacts.switch_contacts)
                             plain[0] = orient[0]
@@ -326,6 +329,10 @@ def cases_part(
                         break
                     if (is_cut or piece == pieces) and accepted[i] >= max_steps and not target_hit:
                         code[i] = Outcome_MAX_STEPS
+                        ended = True
+                        break
+                    if switched and after[control_column] == 0:  # stepper._complete: onto a singular branch
+                        code[i] = Outcome_SINGULAR_BRANCH
                         ended = True
                         break
                     if target_hit:

@@ -19,7 +19,7 @@ FAILURE_REASONS = {
     "step_size_underflow": "the step size fell below min_step",
     "left_domain": "the path left the admissible domain",
     "max_steps": "max_steps accepted steps before the end of the programme",
-    "singular_control": "the control is singular at a stage start",
+    "singular_control": "the control is singular at a stage start, or on the branch a contact switch leads to",
     "bad_stage_start": "a held quantity is not at its held value when the stage starts",
 }
 

@@ -289,6 +289,10 @@ class BatchStepper(CaseEnds):
             move_to_cut_points(self, steps, crossings, cut_rows, cut_column, indicators)
         self._commit(steps, reach, indicators, counts_step)
         self._end_stages(steps.cases, is_cut, cut_column, indicators, is_cut | ends_step)
+        # A switch onto a branch whose control is singular (the state stored there).
+        control = self.columns.events.index("controllability_loss")
+        singular = is_cut & self.break_columns[cut_column] & (indicators[:, control] == 0)
+        self.fail_singular_branch(steps.cases[singular & (self.status[steps.cases] == RUNNING)])
         return is_cut
 
     def _commit(self, steps: AcceptedSteps, reach: np.ndarray, indicators: np.ndarray, counts_step: bool) -> None:
