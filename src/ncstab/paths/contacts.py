@@ -10,9 +10,9 @@ The branch is followed from the switch into its own side: the side of the
 crossed indicator where the new state holds (a closed contact, its bit set:
 the gap or overlap below zero; an open one: above).  Where the motion kept
 through the switch would lead straight back across -- both branches' paths
-run into the switching surface, a corner of the equilibrium path where the
-driven quantity turns back -- the orientation follows the branch's side
-instead (the contacts chattered at that corner before, a step of about
+run into the switching surface, a corner of the equilibrium path (McNamara,
+gamma = 0.79, F2* = 0.58 held, D1* driven: F1* peaks where the left-right
+pair opens) -- the orientation follows the branch's side instead (the contacts chattered at that corner before, a step of about
 event_tol each, until ``max_steps``).  The side is the sign of the
 indicator's central difference along the new tangent, +-:data:`ENTRY_PROBE`
 in arclength; where it is below :data:`ENTRY_NOISE` (the path grazes the
