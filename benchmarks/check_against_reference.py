@@ -11,7 +11,7 @@ case by case:
   arclength ``s`` and displacements ``u`` where both found it;
 * the end states' ``u`` and ``F``.
 
-This is how the defects fixed on 2026-12-02 were found (CHANGELOG: a root a
+This comparison found the defects fixed on 2026-12-02 (CHANGELOG: a root a
 stored state lands on, contacts chattering at a corner, a ``no_tension``
 contact pulled by a force).  A measurement, not a test: it asserts
 nothing and prints a report.  The reference runs every case with small
