@@ -289,10 +289,6 @@ class BatchStepper(CaseEnds):
             move_to_cut_points(self, steps, crossings, cut_rows, cut_column, indicators)
         self._commit(steps, reach, indicators, counts_step)
         self._end_stages(steps.cases, is_cut, cut_column, indicators, is_cut | ends_step)
-        # A switch onto a branch whose control is singular (the state stored there).
-        control = self.columns.events.index("controllability_loss")
-        singular = is_cut & self.break_columns[cut_column] & (indicators[:, control] == 0)
-        self.fail_singular_branch(steps.cases[singular & (self.status[steps.cases] == RUNNING)])
         return is_cut
 
     def _commit(self, steps: AcceptedSteps, reach: np.ndarray, indicators: np.ndarray, counts_step: bool) -> None:
@@ -314,8 +310,10 @@ class BatchStepper(CaseEnds):
         """End the stage of ``cases`` at a stop event or its target; fail cases out of steps
         (where their step ends, ``ends_step``).
 
-        A case that reached its target enters the next stage (and stores its
-        state there again, see :func:`ncstab.paths.stage_entry.enter`).
+        A case cut at a contact switch onto a branch whose control is singular
+        fails there (its state stored), before its target is looked at.  A case
+        that reached its target enters the next stage (and stores its state
+        there again, see :func:`ncstab.paths.stage_entry.enter`).
         """
         target = self.columns.target
         stops = self.stop_table[self.stage_index[cases], cut_column]
@@ -326,7 +324,10 @@ class BatchStepper(CaseEnds):
         self.stop(cases[stop_hit], cut_column[stop_hit])
         too_many = (self.accepted[cases] >= self.options.max_steps) & ~target_hit & ~stop_hit & ends_step
         self.fail_max_steps(cases[too_many])
-        self.enter_next_stage(cases[target_hit])
+        control = self.columns.events.index("controllability_loss")
+        singular = is_cut & self.break_columns[cut_column] & (indicators[:, control] == 0) & ~stop_hit & ~too_many
+        self.fail_singular_branch(cases[singular])
+        self.enter_next_stage(cases[target_hit & ~singular])
 
     def enter_next_stage(self, cases: np.ndarray) -> None:
         """Cases ``cases`` reached their stage target: they enter the next stage."""
