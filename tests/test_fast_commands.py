@@ -226,6 +226,95 @@ def test_plot_imports_neither_sympy_nor_the_engine(swept_archive, tmp_path):
     assert sorted(path.name for path in tmp_path.glob("*.png"))
 
 
+def test_settle_freezes_only_inside_a_command_and_the_command_unfreezes_at_its_end():
+    """``ncstab.heap``: outside a command (ncstab as a library) the collector is left
+    alone; inside, what settle() froze goes back to the collector when the command ends."""
+    import gc
+
+    from ncstab.heap import settle, settled_heap
+
+    assert gc.get_freeze_count() == 0
+    settle()
+    assert gc.get_freeze_count() == 0
+    with settled_heap():
+        with settled_heap():  # nested: only the outermost end unfreezes
+            settle()
+            assert gc.get_freeze_count() > 0
+        assert gc.get_freeze_count() > 0
+    assert gc.get_freeze_count() == 0
+
+
+def test_plot_freezes_the_imports_while_drawing_and_leaves_nothing_frozen(swept_archive, tmp_path, monkeypatch):
+    """``ncstab plot`` settles the heap after its imports (ncstab.heap), before drawing,
+    and leaves the collector as it found it."""
+    import gc
+
+    from ncstab.plotting import draw as draw_module
+
+    frozen_while_drawing = []
+    original = draw_module.draw_figures
+
+    def drawing(*args, **kwargs):
+        frozen_while_drawing.append(gc.get_freeze_count())
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(draw_module, "draw_figures", drawing)
+    monkeypatch.setattr("ncstab.plotting.draw_figures", drawing)
+    assert main(["plot", str(swept_archive), "--directory", str(tmp_path)]) == 0
+    assert frozen_while_drawing and frozen_while_drawing[0] > 10_000  # the imports' objects
+    assert gc.get_freeze_count() == 0
+
+
+def test_plot_does_not_import_dask_array_where_dask_is_installed(swept_archive, tmp_path):
+    """ncstab.dask_probe: xarray's probe for dask arrays is answered without importing
+    dask.array (0.8 s), and the figures are drawn."""
+    pytest.importorskip("dask")
+    script = textwrap.dedent(f"""
+        import contextlib, io, sys
+        from ncstab.cli import main
+        with contextlib.redirect_stdout(io.StringIO()):
+            code = main(["plot", {str(swept_archive)!r}, "--directory", {str(tmp_path)!r}])
+        print(code, "dask.array" in sys.modules, "xarray" in sys.modules)
+    """)
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120,
+                          env=dict(os.environ, MPLBACKEND="Agg"), check=False)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["0", "False", "True"]
+    assert len(list(tmp_path.glob("*.png"))) >= 2
+
+
+def test_xarray_still_tells_dask_arrays_after_the_probe_is_deferred():
+    """After defer_dask_array_import, xarray's answers are the ones it gives without it: a
+    numpy array is not a dask array (and dask.array is not imported to say so); once dask.array
+    is imported, its arrays stay lazy in xarray, masked ones are filled, and the probe's class
+    is dask's for isinstance and issubclass."""
+    pytest.importorskip("dask")
+    script = textwrap.dedent("""
+        import sys
+        import numpy as np
+        import xarray as xr
+        from xarray.namedarray import pycompat
+        from ncstab.dask_probe import DeferredDaskArray, defer_dask_array_import
+        assert defer_dask_array_import()
+        assert not defer_dask_array_import()  # once
+        plain = xr.Variable(("x",), np.arange(3.0))
+        assert "dask.array" not in sys.modules and not isinstance(plain.data, DeferredDaskArray)
+        import dask.array as da
+        assert pycompat.array_type("dask") == (DeferredDaskArray,)
+        lazy = xr.DataArray(da.arange(4.0, chunks=2), dims="x")
+        assert lazy.chunks == ((2, 2),) and isinstance(lazy.data, DeferredDaskArray)
+        assert issubclass(da.Array, DeferredDaskArray) and not issubclass(np.ndarray, DeferredDaskArray)
+        masked = da.ma.masked_array(np.arange(4.0), mask=[0, 1, 0, 0], chunks=2)
+        filled = xr.Variable(("x",), masked).compute().values
+        assert np.isnan(filled[1]) and filled[2] == 2.0, filled
+        assert str(pycompat.mod_version("dask")) == __import__("dask").__version__
+        print("ok")
+    """)
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120, check=False)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "ok"
+
+
 def test_info_lines_fit_in_100_characters(info_text):
     lines = info_text.splitlines()
     assert max(len(line) for line in lines) <= LINE_WIDTH

@@ -1176,6 +1176,19 @@ def test_fletcher32_of_a_chunk_larger_than_a_block_is_what_hdf5_stores(tmp_path,
     assert fletcher32(values.tobytes()) == int.from_bytes(stored[-4:], "little")
 
 
+@pytest.mark.parametrize("block", [1, 2, 7, 360])
+def test_fletcher32_summed_in_many_blocks_is_hdf5s_checksum(block, rng, monkeypatch):
+    """The blocks' sums combined (checksums._BLOCK words at a time, here a few words): the
+    transcribed HDF5 loop's value, for lengths that end inside a block and on its edge."""
+    from ncstab.studies import checksums
+
+    monkeypatch.setattr(checksums, "_BLOCK", block)
+    for size in (1, 2, 3, 14, 15, 719, 720, 721, 4001):
+        data = rng.integers(0, 256, size, dtype=np.uint8).tobytes()
+        assert checksums.fletcher32(data) == _fletcher32_as_hdf5_writes_it(data), (block, size)
+    assert checksums.fletcher32(b"\xff" * 1441) == _fletcher32_as_hdf5_writes_it(b"\xff" * 1441)
+
+
 @pytest.mark.parametrize("dtype", ["<f8", "<i4"])
 def test_chunks_encoded_by_ncstab_are_read_back_by_hdf5(dtype, tmp_path, rng):
     """The bytes a chunked run writes directly (checksum, shuffle, deflate) decode in netCDF to the

@@ -90,8 +90,13 @@ def command_plot(args: argparse.Namespace) -> int:
     from ncstab.plotting import draw_figures
     from ncstab.studies.errors import InvalidInputError, WriteError, write_error
 
+    from ncstab.dask_probe import defer_dask_array_import
+    from ncstab.heap import settle
+
+    defer_dask_array_import()  # xarray's probe for dask arrays without importing dask.array (0.8 s)
     path = Path(args.archive)
     dataset = _open_archive(args.archive)
+    settle()  # the imports' objects out of the collector's scans while drawing (ncstab.heap)
     kinds = args.kinds.split(",") if args.kinds else None
     directory = Path(args.directory) if args.directory else path.parent
     try:
@@ -223,6 +228,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     cleanly with exit code 3; any other error is one line and exit code 3.
     With ``--debug`` the traceback is shown instead.
     """
+    from ncstab.heap import settled_heap
     from ncstab.studies.errors import EXIT_RUN_INCOMPLETE, NcstabError, RunError
     from ncstab.studies.interrupts import stop_on_signals
 
@@ -234,7 +240,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     prefix = f"ncstab {args.command}"
     debug = bool(getattr(args, "debug", False))
     on_cluster = getattr(args, "workers", None) is not None or getattr(args, "scheduler", None) is not None
-    with stop_on_signals(prefix), _quiet_cluster_logs(on_cluster and not debug):
+    with stop_on_signals(prefix), _quiet_cluster_logs(on_cluster and not debug), settled_heap():
         try:
             return int(args.handler(args))
         except NcstabError as error:

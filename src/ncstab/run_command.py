@@ -148,6 +148,7 @@ def _announced(what: str, progress: bool) -> Iterator[None]:
 
 def _draw(output: Path, progress: bool = False) -> tuple[list[Path], list[str]]:
     """The figures of a written archive, and its status summary."""
+    from ncstab.heap import settle
     from ncstab.plotting import draw_figures
     from ncstab.studies import open_study_lazily
     from ncstab.studies.errors import RunError, RunInterrupted, WriteError, write_error
@@ -155,6 +156,7 @@ def _draw(output: Path, progress: bool = False) -> tuple[list[Path], list[str]]:
 
     try:
         with open_study_lazily(output) as dataset:
+            settle()  # the imports' objects out of the collector's scans while drawing (ncstab.heap)
             return draw_figures(dataset, output.parent, stem=output.stem, progress=progress), status_lines(dataset)
     except (RunError, RunInterrupted) as error:
         error.kept = error.kept or f"the archive {output} was written, its figures were not all drawn"
@@ -167,9 +169,11 @@ def _draw(output: Path, progress: bool = False) -> tuple[list[Path], list[str]]:
 
 def command_run(args: argparse.Namespace) -> int:
     """Validate every study and check every output first (exit 2 if any is bad), then run, write, draw."""
+    from ncstab.dask_probe import defer_dask_array_import
     from ncstab.studies.errors import NcstabError, RunError, RunInterrupted
 
     _check_run_options(args)
+    defer_dask_array_import()  # xarray's probe for dask arrays without importing dask.array (0.8 s)
     studies = _load_studies(args.studies)
     if studies is None:
         return 2

@@ -26,7 +26,7 @@ __all__ = ["DIGEST_ATTRIBUTE", "fletcher32", "format_digests", "hdf5_chunk", "pa
 DIGEST_ATTRIBUTE = "ncstab_sha256"
 #: HDF5's Fletcher-32 sums are taken modulo 2^16 - 1 (ones' complement).
 _MODULUS = 65535
-#: Words summed at once in :func:`fletcher32` (2^22: each weighted sum stays below 2^60).
+#: Words summed at once in :func:`fletcher32` (2^22: the sum of a block's prefix sums stays below 2^60).
 _BLOCK = 1 << 22
 
 
@@ -35,11 +35,13 @@ def fletcher32(data: bytes) -> int:
 
     The bytes are read as big-endian 16-bit words w_0 .. w_{n-1} (an odd last
     byte is the high byte of a last word).  With S1 = sum w_k and
-    S2 = sum (n - k) w_k = n S1 - sum k w_k, both modulo 65535 in ones'
-    complement (a non-zero multiple of 65535 is 65535, not 0 -- what HDF5's
-    folded sums give), the checksum is ``S2 << 16 | S1``.  Vectorised: two
-    sums over the words (exact in 64-bit integers, :data:`_BLOCK` words at a
-    time) instead of HDF5's loop over blocks of 360 words, the same value.
+    S2 = sum (n - k) w_k, both modulo 65535 in ones' complement (a non-zero
+    multiple of 65535 is 65535, not 0 -- what HDF5's folded sums give), the
+    checksum is ``S2 << 16 | S1``.  Vectorised: S2 is the sum of the prefix
+    sums of the words (sum_j sum_{k <= j} w_k = sum_k (n - k) w_k), taken
+    :data:`_BLOCK` words at a time, exact in 64-bit integers, and the blocks
+    combined in Python integers -- instead of HDF5's loop over blocks of 360
+    words, the same value.
 
     Parameters
     ----------
@@ -54,17 +56,19 @@ def fletcher32(data: bytes) -> int:
     buffer = np.frombuffer(data, dtype=np.uint8)
     if buffer.size % 2:
         buffer = np.concatenate([buffer, np.zeros(1, np.uint8)])
-    words = buffer.view(">u2").astype(np.uint64)
-    if not words.any():
+    words = buffer.view(">u2")
+    n = words.size
+    total = second = 0
+    for start in range(0, n, _BLOCK):
+        # A block of m words: prefix sums below 65535 m < 2^38, their sum below 2^60: exact.
+        prefix = np.cumsum(words[start : start + _BLOCK], dtype=np.uint64)
+        block_total, m = int(prefix[-1]), prefix.size
+        # sum_{k in block} (n - k) w_k = (n - start - m) * block_total + sum of the block's prefix sums
+        second += (n - start - m) * block_total + int(prefix.sum())
+        total += block_total
+    if total == 0:
         return 0
-    total, moment = int(words.sum()), 0
-    offsets = np.arange(min(words.size, _BLOCK), dtype=np.uint64)
-    for start in range(0, words.size, _BLOCK):  # j w_j < 2^38, a block's sum < 2^60: exact
-        block = words[start : start + _BLOCK]
-        moment += start * int(block.sum()) + int(block @ offsets[: block.size])
-    first = total % _MODULUS or _MODULUS
-    second = (words.size * total - moment) % _MODULUS or _MODULUS
-    return (second << 16) | first
+    return ((second % _MODULUS or _MODULUS) << 16) | (total % _MODULUS or _MODULUS)
 
 
 def hdf5_chunk(values: np.ndarray, level: int) -> bytes:
