@@ -150,6 +150,23 @@ def test_recorder_keeps_each_case_in_order_across_growth():
         np.testing.assert_array_equal(steps["K"][case, :n, 1, 0], expected[case])
 
 
+def test_recorder_doubles_for_the_next_step_and_grows_less_to_an_estimate():
+    """Recorder.reserve: room for the next step doubles the capacity (8 -> 16 for 9 states);
+    room for an estimate (growth 1.25) grows to the estimate, or by a quarter where it is
+    short (8 -> 10 for 9); the states kept, the padding NaN and -1."""
+    from ncstab.paths.recorder import Recorder
+
+    for growth, needed, expected in ((2.0, 9, 16), (1.25, 9, 10), (1.25, 30, 30), (2.0, 30, 30)):
+        recorder = Recorder(2)
+        recorder.add(np.array([0, 1]), s=np.array([1.0, 2.0]), stage=np.array([3, 4]))
+        assert recorder.capacity == 8
+        recorder.reserve(needed, growth=growth)
+        assert recorder.capacity == expected
+        steps, counts = recorder.assemble()
+        assert counts.tolist() == [1, 1] and steps["s"][:, 0].tolist() == [1.0, 2.0]
+        assert np.isnan(recorder.arrays["s"][:, 1:]).all() and (recorder.arrays["stage"][:, 1:] == -1).all()
+
+
 # --- the state kernels kept on disk (ncstab.operators.kernel_cache) ---------------------------
 
 

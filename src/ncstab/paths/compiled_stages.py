@@ -34,6 +34,9 @@ __all__ = ["STEPS_PER_CALL", "CompiledStages", "control_rows"]
 #: size): a case whose steps would overfill the recorder pauses, the recorder
 #: grows and the next call goes on from there.
 STEPS_PER_CALL = 1
+#: Least growth of the recorder where it grows to an estimate of what the paused cases
+#: still need (:meth:`CompiledStages._reserve_for_the_rest`).
+ESTIMATED_GROWTH = 1.25
 
 
 class _TurnEnd(NamedTuple):
@@ -172,8 +175,11 @@ class CompiledStages:
         A case pauses when the recorder is full.  Its states per unit of the
         stage parameter lambda so far, times what is left to the stage's end
         (``lam_end``), estimate what it still needs: the recorder grows once
-        to the largest estimate (and a tenth more) instead of doubling at
-        every pause.  Only the memory depends on it, not a number stored.
+        to the largest of the cases' counts plus their estimates (and a tenth
+        more), by a factor of at least :data:`ESTIMATED_GROWTH` rather than
+        doubling, so that an estimate that falls short costs a few more
+        growths, not twice the memory.  Only the memory depends on it, not a
+        number stored.
         """
         paused = self.code[cases] == Outcome.PAUSED
         if not paused.any():
@@ -183,10 +189,10 @@ class CompiledStages:
         lam = stepper.y[cases, stepper.layout.lam]
         with np.errstate(divide="ignore", invalid="ignore"):
             rest = (count - count_before) * np.abs((stepper.stages.lam_end[cases] - lam) / (lam - lam_before))
-        rest = rest[np.isfinite(rest)]
-        if rest.size:
-            needed = count.max() + min(1.1 * rest.max() + 1, 16 * stepper.recorder.capacity)
-            stepper.recorder.reserve(int(needed))
+        known = np.isfinite(rest)
+        if known.any():
+            rest = np.minimum(1.1 * rest[known] + 1, 16 * stepper.recorder.capacity)
+            stepper.recorder.reserve(int((count[known] + rest).max()), growth=ESTIMATED_GROWTH)
 
     @staticmethod
     def _close_turns(stepper: BatchStepper, k: int, closed: np.ndarray, values: np.ndarray) -> None:

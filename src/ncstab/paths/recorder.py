@@ -51,12 +51,23 @@ class Recorder:
                 key: self._blank((self.size, self.capacity) + shape, dtype) for key, (shape, dtype) in fields.items()
             }
 
-    def reserve(self, needed: int) -> None:
-        """Room for ``needed`` states per case (the capacity at least doubles); also
-        for a writer that fills the arrays and ``count`` itself (:mod:`ncstab.paths.compiled`)."""
+    def reserve(self, needed: int, growth: float = 2.0) -> None:
+        """Room for ``needed`` states per case; also for a writer that fills the arrays and
+        ``count`` itself (:mod:`ncstab.paths.compiled`).
+
+        Parameters
+        ----------
+        needed
+            States per case the arrays must hold.
+        growth
+            Where they must grow, the least factor of growth: 2 (doubling) where
+            ``needed`` is only the next step's, less where it is an estimate of what
+            the cases still need (the capacity then stays near the estimate, and a
+            short estimate still costs only a few growths).
+        """
         assert self.arrays is not None
         if needed > self.capacity:
-            capacity = max(needed, 2 * self.capacity)
+            capacity = max(needed, int(growth * self.capacity))
             for key, array in self.arrays.items():
                 # Each byte written once (fresh pages are costly to touch): the
                 # old states, then the padding.
