@@ -1,8 +1,26 @@
-"""Sizes in bytes as people read them (the standard library only: the CLI's fast paths use it)."""
+"""Sizes in bytes as people read them, and the memory available (the standard library only:
+the CLI's fast paths use it)."""
 
 from __future__ import annotations
 
-__all__ = ["readable_size"]
+import os
+
+__all__ = ["available_memory", "readable_size"]
+
+
+def available_memory() -> int | None:
+    """Bytes of memory available to a new allocation (``MemAvailable``), or None if unknown."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as meminfo:
+            for line in meminfo:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError, AttributeError):  # pragma: no cover
+        return None
 
 
 def readable_size(size: float) -> str:

@@ -20,7 +20,7 @@ __all__ = ["CaseEnds"]
 
 class CaseEnds:
     """Ending cases of a stepper: its ``status``, ``message``, ``progress``,
-    ``programme``, ``options``, ``stage_index`` and ``columns`` (set by the stepper)."""
+    ``programme``, ``options``, ``stage_index``, ``columns`` and ``recorder`` (set by the stepper)."""
 
     status: np.ndarray
     message: np.ndarray
@@ -29,6 +29,7 @@ class CaseEnds:
     options: Any
     stage_index: np.ndarray
     columns: Any
+    recorder: Any
 
     def end(self, index: np.ndarray, state: str, text: str | np.ndarray) -> None:
         """Cases ``index`` end with status ``state`` and message ``text``."""
@@ -77,6 +78,22 @@ class CaseEnds:
                 f"stage {number + 1}: a contact switch led onto a branch where the control is singular (det of "
                 "the force-controlled block of K is 0): the driven quantity cannot go on (a no_tension contact "
                 "opened under a force it cannot carry, say)",
+            )
+
+    def fail_memory(self, cases: np.ndarray) -> None:
+        """Cases ``cases`` fail: their next step could store more states than the recorder's
+        limit per case (:func:`ncstab.paths.recorder.state_limit`)."""
+        from ncstab.sizes import readable_size
+
+        recorder = self.recorder
+        available = "" if recorder.available is None else f" ({readable_size(recorder.available)} available)"
+        for number in np.unique(self.stage_index[cases]):
+            self.fail(
+                cases[self.stage_index[cases] == number],
+                "memory",
+                f"stage {number + 1}: the path needs more than {recorder.limit} stored states, the most each of "
+                f"{recorder.size:,} cases can keep in a quarter of the memory{available}; raise sample_step, or "
+                "run fewer cases at once (ncstab run --chunk-cases)",
             )
 
     def stop(self, cases: np.ndarray, columns: np.ndarray) -> None:

@@ -142,7 +142,8 @@ class CompiledStages:
                 recorder = stepper.recorder
                 # room for the next step's pieces of every case
                 pieces = stepper.options.pieces(np.minimum(stepper.step_size[cases], stepper.options.max_step))
-                recorder.reserve(int((recorder.count[cases] + STEPS_PER_CALL * pieces).max()))
+                needed = int((recorder.count[cases] + STEPS_PER_CALL * pieces).max())
+                recorder.reserve(needed if recorder.limit is None else min(needed, recorder.limit))
                 lam_before, count_before = stepper.y[cases, stepper.layout.lam], recorder.count[cases]
                 secondary_state = np.ascontiguousarray(stages.secondary_state, dtype=np.int64)
                 arguments = (
@@ -163,6 +164,7 @@ class CompiledStages:
                 self._run_shared(cases.astype(np.int64), arguments)
                 self._close_turns(stepper, int(k), turn_closed, turn_values)
                 self._reserve_for_the_rest(stepper, cases, lam_before, count_before)
+                self._fail_beyond_the_limit(stepper, cases)
                 stages.secondary_state[cases] = secondary_state[cases]  # contacts switched in the loop
                 self._end(stepper, cases)
         self._store_events(stepper, found, values, stage)
@@ -192,7 +194,20 @@ class CompiledStages:
         known = np.isfinite(rest)
         if known.any():
             rest = np.minimum(1.1 * rest[known] + 1, 16 * stepper.recorder.capacity)
-            stepper.recorder.reserve(int((count[known] + rest).max()), growth=ESTIMATED_GROWTH)
+            needed = int((count[known] + rest).max())
+            limit = stepper.recorder.limit
+            stepper.recorder.reserve(needed if limit is None else min(needed, limit), growth=ESTIMATED_GROWTH)
+
+    def _fail_beyond_the_limit(self, stepper: BatchStepper, cases: np.ndarray) -> None:
+        """Fail the paused cases whose next step could store more states than the
+        recorder's limit (``failed:memory``, as the numpy stepper's ``step`` does: a case
+        pauses where its next step would overfill the recorder, which grows up to the limit)."""
+        if stepper.recorder.limit is None:
+            return
+        paused = cases[self.code[cases] == Outcome.PAUSED]
+        pieces = stepper.options.pieces(np.minimum(stepper.step_size[paused], stepper.options.max_step))
+        fits = stepper.recorder.fits(paused, pieces)
+        stepper.fail_memory(paused[~fits])
 
     @staticmethod
     def _close_turns(stepper: BatchStepper, k: int, closed: np.ndarray, values: np.ndarray) -> None:

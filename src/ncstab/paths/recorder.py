@@ -1,10 +1,37 @@
-"""Stored states of a batch of cases: padded ``(B, steps, ...)`` arrays that grow."""
+"""Stored states of a batch of cases: padded ``(B, steps, ...)`` arrays that grow, within a limit.
+
+The arrays are dense: every case has room for as many states as the longest,
+so one case whose path runs long (a contact chattering, a runaway branch)
+would make the whole batch ask for more memory than the machine has, and the
+system would kill the process with nothing written.  The recorder therefore
+has a limit of states per case, :func:`state_limit`: what :data:`STORED_SHARE`
+of the memory available when the batch starts holds for every case (the
+Dataset built from the states, its indicators and the archive need the rest).
+A case whose next step could overfill it fails (``failed:memory``, with a
+message saying what to change) while the others go on; the steppers check it
+before each step (:meth:`Recorder.fits`).
+"""
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["Recorder"]
+__all__ = ["MIN_STATE_LIMIT", "STORED_SHARE", "Recorder", "state_limit"]
+
+#: Share of the memory available when a batch starts that its stored states may take.
+STORED_SHARE = 0.25
+#: The limit of states per case is never below this (a machine short of memory
+#: fails later, in numpy, rather than refusing every path).
+MIN_STATE_LIMIT = 64
+
+
+def state_limit(size: int, bytes_per_state: int, available: int | None) -> int | None:
+    """Most states per case that ``size`` cases of ``bytes_per_state`` bytes each may store
+    in :data:`STORED_SHARE` of ``available`` bytes (at least :data:`MIN_STATE_LIMIT`);
+    None where the memory available is unknown."""
+    if available is None or size <= 0 or bytes_per_state <= 0:
+        return None
+    return max(MIN_STATE_LIMIT, int(STORED_SHARE * available) // (size * bytes_per_state))
 
 
 class Recorder:
@@ -15,11 +42,21 @@ class Recorder:
     (no per-step chunks to concatenate and sort at the end).
     """
 
-    def __init__(self, size: int) -> None:
+    def __init__(self, size: int, limit: int | None = None, available: int | None = None) -> None:
         self.size = size
         self.count = np.zeros(size, dtype=int)
         self.arrays: dict[str, np.ndarray] | None = None
         self.capacity = 0
+        #: Most states per case the steppers let a case store (:func:`state_limit`), None: no limit.
+        self.limit = limit
+        #: The memory available when the batch started, in bytes (for the failure's message).
+        self.available = available
+
+    def fits(self, cases: np.ndarray, states: np.ndarray) -> np.ndarray:
+        """Whether ``states`` more states of each of ``cases`` stay within the limit."""
+        if self.limit is None:
+            return np.ones(cases.shape, dtype=bool)
+        return self.count[cases] + states <= self.limit
 
     @staticmethod
     def _blank(shape: tuple[int, ...], dtype: np.dtype) -> np.ndarray:
@@ -67,7 +104,10 @@ class Recorder:
         """
         assert self.arrays is not None
         if needed > self.capacity:
-            capacity = max(needed, int(growth * self.capacity))
+            wider = int(growth * self.capacity)
+            if self.limit is not None:  # room beyond the limit only where it is asked for
+                wider = min(wider, self.limit)
+            capacity = max(needed, wider)
             for key, array in self.arrays.items():
                 # Each byte written once (fresh pages are costly to touch): the
                 # old states, then the padding.

@@ -21,6 +21,7 @@ FAILURE_REASONS = {
     "max_steps": "max_steps accepted steps before the end of the programme",
     "singular_control": "the control is singular at a stage start, or on the branch a contact switch leads to",
     "bad_stage_start": "a held quantity is not at its held value when the stage starts",
+    "memory": "the next step could store more states than the batch's limit per case (ncstab.paths.recorder)",
 }
 
 

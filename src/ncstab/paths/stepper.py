@@ -35,11 +35,12 @@ from ncstab.paths.events import signs_kept
 from ncstab.paths.options import AUTO, PathOptions
 from ncstab.paths.programme import LoadingProgramme
 from ncstab.paths.projection import advance
-from ncstab.paths.recorder import Recorder
+from ncstab.paths.recorder import Recorder, state_limit
 from ncstab.paths.rhs import Auxiliary, StateLayout, state_derivative
 from ncstab.paths.status import RUNNING
 from ncstab.paths.step_pieces import complete_in_pieces
 from ncstab.paths.tangent_field import StageArrays
+from ncstab.sizes import available_memory
 
 __all__ = ["BatchStepper", "follow_cases"]
 
@@ -112,7 +113,8 @@ class BatchStepper(CaseEnds):
         self.indicators = np.full((size, self.columns.size), np.nan)
         self.stages = StageArrays.empty(size, n)
         self.stages.secondary_state[:] = batch.initial_secondary_state(self.y[:, layout.v])
-        self.recorder = Recorder(size)
+        available = available_memory()
+        self.recorder = Recorder(size, state_limit(size, self._bytes_per_state(), available), available)
         self.events = empty_events(size, n, self.interaction_shapes())
         self.event_column, self.stop_table, self.break_columns = event_tables(programme, secondary_contacts, self.columns)
         self.turns = CycleTurns(programme, size, n, batch.interaction_shapes.get("T", ()))
@@ -168,6 +170,10 @@ class BatchStepper(CaseEnds):
             fields["branch_index"] = self.branch_index[index]
         self.recorder.add(index, **fields)
 
+    def _bytes_per_state(self) -> int:
+        """Bytes one stored state of one case takes in the recorder."""
+        return sum(int(np.prod(shape)) * dtype.itemsize for shape, dtype in self.record_fields().values())
+
     def record_fields(self) -> dict[str, tuple[tuple[int, ...], np.dtype]]:
         """Shape (after the case and step axes) and dtype of each stored field, in order."""
         n, floating = self.batch.n_dof, np.dtype(float)
@@ -189,6 +195,14 @@ class BatchStepper(CaseEnds):
         active = np.flatnonzero(self.status == RUNNING)
         if active.size == 0:
             return False
+        # a case whose next step could store more states than the recorder's limit fails first
+        pieces = self.options.pieces(np.minimum(self.step_size[active], self.options.max_step))
+        fits = self.recorder.fits(active, pieces)
+        if not fits.all():
+            self.fail_memory(active[~fits])
+            active = active[fits]
+            if active.size == 0:
+                return True
         steps = self._take_steps(active)
         if steps is not None:
             complete_in_pieces(self, steps)  # (which fails the cases that left the domain)

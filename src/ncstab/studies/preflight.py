@@ -24,7 +24,7 @@ import shutil
 from dataclasses import dataclass
 from pathlib import Path as FilePath
 
-from ncstab.sizes import readable_size
+from ncstab.sizes import available_memory, readable_size
 from ncstab.studies.errors import (
     DiskFullError,
     LimitError,
@@ -207,21 +207,6 @@ def free_disk(path: str | os.PathLike[str]) -> int | None:
     except OSError:
         return None
     return usage.free if usage.total > 0 else None
-
-
-def available_memory() -> int | None:
-    """Bytes of memory available to a new allocation (``MemAvailable``), or None if unknown."""
-    try:
-        with open("/proc/meminfo", encoding="ascii") as meminfo:
-            for line in meminfo:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    try:
-        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-    except (OSError, ValueError, AttributeError):  # pragma: no cover
-        return None
 
 
 def map_memory(study: Study, estimate: SizeEstimate, cases: int) -> dict[str, float]:
