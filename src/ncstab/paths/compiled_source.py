@@ -32,6 +32,7 @@ from ncstab.cache import cache_directory
 from ncstab.paths.compiled import FIRST_PARAMETER
 from ncstab.paths.events import INDICATOR_EVENTS, INDICATOR_GAP, SIGN_NOISE, TINY
 from ncstab.paths.contacts import ENTRY_NOISE, ENTRY_PROBE
+from ncstab.paths.domain_edge import EDGE_HALVINGS
 
 __all__ = ["CACHE_KIND", "kernel_body", "kernel_source", "load_module", "loop_source", "template_body"]
 
@@ -79,6 +80,7 @@ from ncstab.paths.compiled import (
     KAPPA_SLOT, STATE_SLOT, Outcome, StageLoop, _terms,
 )
 from ncstab.paths.contacts import ENTRY_NOISE, ENTRY_PROBE
+from ncstab.paths.domain_edge import EDGE_HALVINGS
 from ncstab.paths.events import CYCLE_COLUMN, INDICATOR_EVENTS, INDICATOR_GAP, SIGN_NOISE, TARGET_COLUMN, TINY, TURNING_COLUMN
 
 rate_form = {rate_form!r}
@@ -185,8 +187,8 @@ def load_module(source: str, prefix: str) -> Any:
     """
     # The module's text, and what it imports: the constants of ncstab.paths.compiled and the
     # event columns (numba freezes imported globals into the cached machine code).
-    stamp = repr((INDICATOR_EVENTS, INDICATOR_GAP, SIGN_NOISE, TINY, ENTRY_PROBE, ENTRY_NOISE, numba.__version__,
-                  np.__version__))
+    stamp = repr((INDICATOR_EVENTS, INDICATOR_GAP, SIGN_NOISE, TINY, ENTRY_PROBE, ENTRY_NOISE, EDGE_HALVINGS,
+                  numba.__version__, np.__version__))
     own = (Path(__file__).parent / "compiled.py").read_text(encoding="utf-8")
     digest = hashlib.sha256((source + stamp + own).encode()).hexdigest()[:20]
     name = f"{prefix}_{digest}"

@@ -9,8 +9,6 @@ stage.  The parameters of :func:`cases_part` are the names it uses from parts
 
 from __future__ import annotations
 
-import math
-
 import numba
 import numpy as np
 
@@ -24,20 +22,21 @@ from ncstab.paths.compiled import (
     StageLoop,
 )
 from ncstab.paths.contacts import ENTRY_NOISE, ENTRY_PROBE
+from ncstab.paths.domain_edge import EDGE_HALVINGS
 from ncstab.paths.events import CYCLE_COLUMN, INDICATOR_EVENTS, INDICATOR_GAP, TARGET_COLUMN
 
 __all__ = ["cases_part"]
 
 
 def cases_part(
-    rate_form, M, angle, dense_coefficients, dense_value, dop853, indicators, initial_step_size, locate, motion,
-    motion_product, n_columns, njit, piece_count, project, rhs, sign, state_slot, store_event, store_record,
-    target_column,
+    rate_form, M, admissible_at, angle, dense_coefficients, dense_value, domain_detail, dop853, indicators,
+    initial_step_size, locate, motion, motion_product, n_columns, njit, piece_count, project, rhs, sign, state_slot,
+    store_event, store_record, target_column,
 ) -> StageLoop:
     """Define ``run_cases`` and ``start`` and return them (a template: see the module docstring)."""
-    half_pi = math.pi / 2
     cycle_column = CYCLE_COLUMN
     entry_probe, entry_noise = ENTRY_PROBE, ENTRY_NOISE
+    edge_halvings = EDGE_HALVINGS
     cut_always = np.array([c in (TARGET_COLUMN, CYCLE_COLUMN) or BREAK_ALWAYS[c] for c in range(_N_COLUMNS)])
     switch_bits = np.array(INDICATOR_GAP, dtype=np.int64)
     Outcome_PAUSED, Outcome_TARGET, Outcome_STOPPED = Outcome.PAUSED, Outcome.TARGET, Outcome.STOPPED
@@ -170,15 +169,7 @@ def cases_part(
                         for j in range(M):
                             y_end[j] = samples[piece - 1, j]
                         rhs(y_end, fc0, fc1, ctl, orient, law, p, c0, s0, dy_end, ev_end, aux_end)
-                        if outside_domain(y_end, ev_end, code, detail, i):
-                            ended = True
-                            break
-                    else:
-                        # --- _fail_outside_domain: the step's end, once the pieces before it
-                        # are done (a stage target or a stop inside them ends the case first)
-                        if outside_domain(y_new, ev_new, code, detail, i):
-                            ended = True
-                            break
+                    else:  # the step's end, once the pieces before it are done
                         end_at = h
                         for j in range(M):
                             y_end[j] = y_new[j]
@@ -187,6 +178,28 @@ def cases_part(
                             ev_end[j] = ev_new[j]
                         for j in range(aux_new.size):
                             aux_end[j] = aux_new[j]
+                    reason = domain_detail(y_end, ev_end)  # --- domain_edge.split_at_the_edge: bisection
+                    if reason >= 0:
+                        if not have_dense:
+                            dense_coefficients(y0, y_raw, h, fc0, fc1, ctl, orient, law, p, c0, s0, stages,
+                                               coefficients, work, ev, aux)
+                            have_dense = True
+                        lo, hi = offset, end_at
+                        for _ in range(edge_halvings):
+                            if not (hi - lo > event_tol):
+                                break
+                            mid = 0.5 * (lo + hi)
+                            if admissible_at(mid, h, y0, coefficients, fc0, fc1, ctl, orient, law, p, c0, s0,
+                                             newton_tol, newton_max_iter, work[0], work[1], ev, aux):
+                                lo = mid
+                            else:
+                                hi = mid
+                        if not (lo > offset):  # nothing admissible beyond the piece's start
+                            code[i], detail[i], ended = Outcome_LEFT_DOMAIN, reason, True
+                            break
+                        admissible_at(lo, h, y0, coefficients, fc0, fc1, ctl, orient, law, p, c0, s0, newton_tol,
+                                      newton_max_iter, y_end, dy_end, ev_end, aux_end)
+                        end_at = lo
                     span = end_at - offset
                     # --- _complete: indicators, crossings located, cut, events, commit
                     indicators(ev_end, aux_end, y_end[2], fc0, fc1, lam_end[i], target_sign[i], turn_end,
@@ -341,21 +354,12 @@ def cases_part(
                         break
                     if is_cut:  # the rest of the step is dropped: the next one starts here
                         break
+                    if reason >= 0:  # completed to the domain's edge, nothing cut it before: it fails there
+                        code[i], detail[i], ended = Outcome_LEFT_DOMAIN, reason, True
+                        break
                     offset = end_at
                 if ended:
                     break
-
-    @njit
-    def outside_domain(state, ev_state, code, detail, i):
-        # stepper._fail_outside_domain, one state: sets code and detail where it left the domain
-        finite = np.isfinite(ev_state[4]) and np.isfinite(ev_state[5])
-        for j in range(M):
-            finite = finite and np.isfinite(state[j])
-        if not finite or not (ev_state[0] > 0) or not (abs(angle(ev_state)) < half_pi):
-            code[i] = Outcome_LEFT_DOMAIN
-            detail[i] = 0 if not finite else (1 if not (ev_state[0] > 0) else 2)
-            return True
-        return False
 
     @numba.njit(cache=False, error_model="numpy")
     def start(cases, y, derivative, indicator_table, arclength, force_controlled, control_rows, lam_end,

@@ -305,6 +305,33 @@ def steps_part(
         row[15] = ev[9]
 
     @njit
+    def domain_detail(state, ev_state):
+        # domain_edge.domain_codes, one state: -1 inside the domain, else the index of the reason
+        # in model.DOMAIN_REASONS (0 non-finite numbers, 1 l* <= 0, 2 |alpha| >= pi/2)
+        finite = np.isfinite(ev_state[4]) and np.isfinite(ev_state[5])
+        for j in range(M):
+            finite = finite and np.isfinite(state[j])
+        if not finite:
+            return 0
+        if not (ev_state[0] > 0):
+            return 1
+        if not (abs(angle(ev_state)) < 0.5 * np.pi):
+            return 2
+        return -1
+
+    @njit
+    def admissible_at(sigma, h, y0, coefficients, fc0, fc1, ctl, orient, law, p, c0, s0, newton_tol,
+                      newton_max_iter, state, dy, ev, aux):
+        # domain_edge._admissible_at, one case: the state at sigma along its step (projected for a
+        # total form) into state, with dy/ds, ev and aux there; whether it is admissible
+        dense_value(y0, coefficients, sigma / h, state)
+        admissible = True
+        if not rate_form:
+            admissible = project(state, fc0, fc1, ctl, law, p, c0, s0, newton_tol, newton_max_iter, ev)
+        rhs(state, fc0, fc1, ctl, orient, law, p, c0, s0, dy, ev, aux)
+        return admissible and domain_detail(state, ev) < 0
+
+    @njit
     def piece_count(h, sample_step, max_pieces):
         # options.PathOptions.pieces: ceil(h / sample_step), between 1 and max_pieces
         if not (h > sample_step):

@@ -13,7 +13,10 @@ its events stored, its end stored.  A step counts once towards ``max_steps``.
 Every piece's end is checked against the admissible domain when its turn
 comes, the step's end too: a stage target or a stop inside an earlier piece
 ends the case there, so a long step that overshoots a target lying near the
-domain's edge does not fail the case.
+domain's edge does not fail the case.  A piece whose end left the domain is
+completed up to the last admissible state on the interpolant, and the case
+fails there unless something cut the piece before
+(:mod:`ncstab.paths.domain_edge`).
 Where an interior end does not project, the step is retried at half its length.
 
 The compiled stepper does the same in its loop (:mod:`ncstab.paths.loop_cases`).
@@ -26,6 +29,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ncstab.paths.accepted_steps import AcceptedSteps, Piece
+from ncstab.paths.domain_edge import split_at_the_edge
 from ncstab.paths.integrator import dense_output, evaluate_dense
 from ncstab.paths.projection import project_finite
 from ncstab.paths.rhs import state_derivative
@@ -43,9 +47,11 @@ def complete_in_pieces(stepper: BatchStepper, steps: AcceptedSteps) -> None:
     pieces = options.pieces(steps.h) if options.max_pieces > 1 else np.ones(steps.cases.size, dtype=np.int64)
     whole = pieces == 1
     if whole.any():
-        kept = stepper._fail_outside_domain(steps if whole.all() else steps.take(np.flatnonzero(whole)))
+        kept, edge, why = split_at_the_edge(stepper, steps if whole.all() else steps.take(np.flatnonzero(whole)))
         if kept is not None:
             stepper._complete(kept)
+        if edge is not None:
+            _complete_to_the_edge(stepper, edge, why, counts_step=True, ends_step=True)
         if whole.all():
             return
         cut = np.flatnonzero(~whole)
@@ -65,17 +71,17 @@ def complete_in_pieces(stepper: BatchStepper, steps: AcceptedSteps) -> None:
             if group.size == 0:
                 continue
             end_at = steps.h[group] if last else steps.h[group] * k / pieces[group]
-            piece_steps = _piece(stepper, steps, group, samples, k, end_at - offset[group], offset[group], last)
-            if piece_steps is None:  # every one of them left the domain there: failed
-                alive = np.setdiff1d(alive, group, assume_unique=True)
-                continue
-            stage_before = stepper.stage_index[piece_steps.cases].copy()
-            is_cut = stepper._complete(piece_steps, counts_step=k == 1, ends_step=last)
-            # a piece cut short, a stage ended or a case ended: the rest of its step is dropped
-            going_on = piece_steps.cases[
-                ~is_cut & (stepper.status[piece_steps.cases] == RUNNING)
-                & (stepper.stage_index[piece_steps.cases] == stage_before)
-            ]
+            inside, edge, why = _piece(stepper, steps, group, samples, k, end_at - offset[group], offset[group], last)
+            going_on = np.empty(0, dtype=steps.cases.dtype)
+            if inside is not None:
+                stage_before = stepper.stage_index[inside.cases].copy()
+                is_cut = stepper._complete(inside, counts_step=k == 1, ends_step=last)
+                # a piece cut short, a stage ended or a case ended: the rest of its step is dropped
+                going_on = inside.cases[
+                    ~is_cut & (stepper.status[inside.cases] == RUNNING) & (stepper.stage_index[inside.cases] == stage_before)
+                ]
+            if edge is not None:  # completed to the domain's edge, then failed unless cut before it
+                _complete_to_the_edge(stepper, edge, why, counts_step=k == 1, ends_step=last)
             offset[group] = end_at
             ended = group[~np.isin(steps.cases[group], going_on)]
             alive = np.setdiff1d(alive, ended, assume_unique=True)
@@ -114,12 +120,24 @@ def _retry_shorter(stepper: BatchStepper, cases: np.ndarray, h: np.ndarray) -> N
     stepper.fail_step_size_underflow(cases[stepper.step_size[cases] < stepper.options.min_step])
 
 
+def _complete_to_the_edge(
+    stepper: BatchStepper, edge: AcceptedSteps, why: np.ndarray, counts_step: bool, ends_step: bool
+) -> None:
+    """Complete steps (or pieces) that end at the domain's edge (:mod:`ncstab.paths.domain_edge`),
+    then fail with ``left_domain`` the cases that nothing cut before it (a target, a stop,
+    a contact switch: those go on from there, or end as they do)."""
+    stage_before = stepper.stage_index[edge.cases].copy()
+    is_cut = stepper._complete(edge, counts_step=counts_step, ends_step=ends_step)
+    leaving = ~is_cut & (stepper.status[edge.cases] == RUNNING) & (stepper.stage_index[edge.cases] == stage_before)
+    stepper.fail_outside_domain(edge.cases[leaving], why[leaving])
+
+
 def _piece(
     stepper: BatchStepper, steps: AcceptedSteps, rows: np.ndarray, samples: np.ndarray, k: int,
     span: np.ndarray, offset: np.ndarray, last: bool,
-) -> AcceptedSteps | None:
-    """Piece ``k`` of the steps ``rows`` as steps of their own (None where every one of
-    them left the domain at its end)."""
+) -> tuple[AcceptedSteps | None, AcceptedSteps | None, np.ndarray]:
+    """Piece ``k`` of the steps ``rows`` as steps of their own, split at the domain's edge
+    (:func:`ncstab.paths.domain_edge.split_at_the_edge`)."""
     cases = steps.cases[rows]
     batch, stage = steps.batch.take(rows), stepper.stages.take(cases)
     piece = Piece(steps.piece.dense[:, rows], steps.y_start[rows], steps.h[rows], offset)
@@ -129,7 +147,7 @@ def _piece(
             cases, batch, stage, y_start, span, None, None, steps.y_new[rows], steps.dy_new[rows],
             steps.aux.take(rows), piece,
         )
-        return stepper._fail_outside_domain(end)
+        return split_at_the_edge(stepper, end)
     y_end = samples[k - 1, rows]
     dy, aux = state_derivative(batch, stage, y_end, stepper.layout)
-    return stepper._fail_outside_domain(AcceptedSteps(cases, batch, stage, y_start, span, None, None, y_end, dy, aux, piece))
+    return split_at_the_edge(stepper, AcceptedSteps(cases, batch, stage, y_start, span, None, None, y_end, dy, aux, piece))

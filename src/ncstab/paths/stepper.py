@@ -253,24 +253,6 @@ class BatchStepper(CaseEnds):
         self.fail_step_size_underflow(active[underflow])
         return accept
 
-    def _fail_outside_domain(self, steps: AcceptedSteps) -> AcceptedSteps | None:
-        """Fail the cases whose new state left the admissible domain (finite numbers,
-        and the batch's own conditions: l* > 0 and |alpha| < pi/2 at every contact...).
-
-        Returns the other cases' steps (None if none).
-        """
-        evaluation = steps.aux.evaluation
-        finite = np.isfinite(steps.y_new).all(-1) & np.isfinite(evaluation.forces).all(-1)
-        codes = np.where(finite, steps.batch.domain_codes(evaluation), 0)
-        outside = codes >= 0
-        if outside.any():
-            why = np.asarray(steps.batch.domain_reasons)[np.maximum(codes, 0)]
-            self.fail_outside_domain(steps.cases[outside], why[outside])
-        keep = np.flatnonzero(~outside)
-        if keep.size == 0:
-            return None
-        return steps.take(keep) if keep.size < steps.cases.size else steps
-
     def _complete(
         self, steps: AcceptedSteps, counts_step: bool = True, ends_step: np.ndarray | bool = True
     ) -> np.ndarray:
