@@ -83,6 +83,7 @@ class CaseEnds:
     def fail_memory(self, cases: np.ndarray) -> None:
         """Cases ``cases`` fail: their next step could store more states than the recorder's
         limit per case (:func:`ncstab.paths.recorder.state_limit`)."""
+        from ncstab.paths.recorder import STORED_SHARE
         from ncstab.sizes import readable_size
 
         recorder = self.recorder
@@ -92,7 +93,7 @@ class CaseEnds:
                 cases[self.stage_index[cases] == number],
                 "memory",
                 f"stage {number + 1}: the path needs more than {recorder.limit} stored states, the most each of "
-                f"{recorder.size:,} cases can keep in a quarter of the memory{available}; raise sample_step, or "
+                f"{recorder.size:,} cases can keep in {STORED_SHARE:.0%} of the memory{available}; raise sample_step, or "
                 "run fewer cases at once (ncstab run --chunk-cases)",
             )
 
