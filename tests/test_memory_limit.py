@@ -96,5 +96,7 @@ def test_the_recorder_grows_up_to_its_limit_and_beyond_only_where_asked():
     assert recorder.capacity == 12  # 16 by doubling, cut at the limit
     recorder.reserve(13)
     assert recorder.capacity == 13
+    recorder.reserve_within_limit(40)
+    assert recorder.capacity == 13  # the limit (12) already exceeded where asked: no further
     assert recorder.fits(np.array([0, 1]), np.array([11, 12])).tolist() == [True, False]
     assert Recorder(2).fits(np.array([0]), np.array([10**9])).all()

@@ -142,8 +142,7 @@ class CompiledStages:
                 recorder = stepper.recorder
                 # room for the next step's pieces of every case
                 pieces = stepper.options.pieces(np.minimum(stepper.step_size[cases], stepper.options.max_step))
-                needed = int((recorder.count[cases] + STEPS_PER_CALL * pieces).max())
-                recorder.reserve(needed if recorder.limit is None else min(needed, recorder.limit))
+                recorder.reserve_within_limit(int((recorder.count[cases] + STEPS_PER_CALL * pieces).max()))
                 lam_before, count_before = stepper.y[cases, stepper.layout.lam], recorder.count[cases]
                 secondary_state = np.ascontiguousarray(stages.secondary_state, dtype=np.int64)
                 arguments = (
@@ -194,9 +193,7 @@ class CompiledStages:
         known = np.isfinite(rest)
         if known.any():
             rest = np.minimum(1.1 * rest[known] + 1, 16 * stepper.recorder.capacity)
-            needed = int((count[known] + rest).max())
-            limit = stepper.recorder.limit
-            stepper.recorder.reserve(needed if limit is None else min(needed, limit), growth=ESTIMATED_GROWTH)
+            stepper.recorder.reserve_within_limit(int((count[known] + rest).max()), growth=ESTIMATED_GROWTH)
 
     def _fail_beyond_the_limit(self, stepper: BatchStepper, cases: np.ndarray) -> None:
         """Fail the paused cases whose next step could store more states than the

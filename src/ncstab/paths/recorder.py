@@ -117,6 +117,11 @@ class Recorder:
                 self.arrays[key] = grown
             self.capacity = capacity
 
+    def reserve_within_limit(self, needed: int, growth: float = 2.0) -> None:
+        """:meth:`reserve` for ``needed`` states per case, but no more than the limit: a case
+        that would need more pauses at it, and its stepper fails it (``failed:memory``)."""
+        self.reserve(needed if self.limit is None else min(needed, self.limit), growth=growth)
+
     def _scatter(self, flat: np.ndarray, values: dict[str, np.ndarray]) -> None:
         """Write ``values`` at the flat (case * capacity + position) indices ``flat``."""
         assert self.arrays is not None
