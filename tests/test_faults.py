@@ -972,6 +972,24 @@ def test_ctrl_c_on_a_local_cluster_stops_every_process_in_one_line(tmp_path, ref
     assert_same_archive(out, reference)
 
 
+def test_a_stopped_run_removes_the_part_temporaries_its_workers_left_and_keeps_its_parts(tmp_path):
+    """A worker of a local cluster closed while it wrote its part leaves the part's temporary
+    (``.<part>.<hex>.part``): the run that stops removes it on the way out, keeps its finished
+    parts for --resume and its lock is released. (Ctrl-C on a cluster run left one at times.)"""
+    from ncstab.studies.outputs import claim_output, parts_directory
+
+    out = tmp_path / "out.nc"
+    parts = parts_directory(out)
+    with pytest.raises(KeyboardInterrupt):
+        with claim_output(out):
+            parts.mkdir()
+            (parts / "mcnamara_000000.npz").write_bytes(b"a finished part")
+            (parts / ".mcnamara_000001.npz.6c77d7a8.part").write_bytes(b"half a part")
+            raise KeyboardInterrupt
+    assert sorted(p.name for p in parts.iterdir()) == ["mcnamara_000000.npz"]
+    assert not lock_path(out).exists()
+
+
 def _group_is_empty(group: int) -> bool:
     try:
         os.killpg(group, 0)

@@ -104,4 +104,11 @@ def claim_output(
                     "discard them"
                 )
             shutil.rmtree(parts_directory(output))
-        yield lock
+        try:
+            yield lock
+        except BaseException:
+            # A run that stops (an interrupt, a lost cluster) has closed its local cluster
+            # by now; a worker closed while it wrote its part left that part's temporary.
+            # The finished parts stay for --resume.
+            _remove_part_temporaries(parts_directory(output))
+            raise
