@@ -105,6 +105,11 @@ def _polynomial_by_interpolation(
     """
     n = mass.shape[-1]
     points = 2 * n + 1
+    # At least one batch axis: numpy evaluates power on a 0-d array by the C library
+    # and on arrays by its SIMD code where the CPU has AVX-512, so one case alone would
+    # differ from the same case in a batch by a rounding (tests/test_dynamics.py).
+    batch_shape = np.broadcast_shapes(mass.shape[:-2], damping.shape[:-2], stiffness.shape[:-2])
+    mass, damping, stiffness = (np.broadcast_to(a, batch_shape + (n, n)).reshape((-1, n, n)) for a in (mass, damping, stiffness))
     finite = (
         np.isfinite(mass).all((-2, -1))
         & np.isfinite(damping).all((-2, -1))
@@ -132,7 +137,7 @@ def _polynomial_by_interpolation(
     values = np.linalg.det(pencil)  # (..., N)
     scaled = np.fft.fft(values, axis=-1) / points  # a_j r^j, lowest degree first
     coefficients = scaled.real / radius[..., None] ** np.arange(points)
-    return np.where(finite[..., None], coefficients[..., ::-1], np.nan)
+    return np.where(finite[..., None], coefficients[..., ::-1], np.nan).reshape(batch_shape + (points,))
 
 
 def hurwitz_matrix(coefficients: ArrayLike) -> np.ndarray:
