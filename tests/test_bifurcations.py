@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 import sympy as sp
 
+import turco_bifurcation  # tests/turco_bifurcation.py (the tests folder is on the path)
 from ncstab.laws.spring import THETA, SpringLaw
 from ncstab.paths import PathOptions, SystemSpec, follow
 from ncstab.studies import parse_study, run_study
@@ -161,7 +162,7 @@ def test_a_case_bifurcates_and_switches_the_same_alone_or_in_a_sweep():
     np.testing.assert_array_equal(one["bifurcation_load"].values, alone["bifurcation_load"].values)
 
 
-# --- The reduced diamond: Turco, gamma = 2, F2* = 0 (the stability diagram's open case) ---
+# --- The reduced diamond: Turco, gamma = 2, F2* = 0 (the stability diagram's case) ---
 
 TURCO_PROGRAMME = [
     {"hold": {"F1": 0.0}, "drive": {"F2": "F2l"}},
@@ -169,46 +170,22 @@ TURCO_PROGRAMME = [
 ]
 
 
-def _turco_gamma_2(max_step: float):
+def _turco_gamma_2(max_step: float, backend: str = "auto"):
     path = follow(
         SystemSpec(secondary_contacts="ignore"), "turco", TURCO_PROGRAMME,
-        {"gamma": 2.0, "F2l": 0.0, "alpha0": np.pi / 4}, PathOptions(max_step=max_step, sample_step=0.05),
+        {"gamma": 2.0, "F2l": 0.0, "alpha0": np.pi / 4},
+        PathOptions(max_step=max_step, sample_step=0.05, backend=backend),
     )
     return path.to_dataset().squeeze()
 
 
-def _turco_bifurcation_point():
-    """The point in closed form, from the energy written here: Turco's law (seed Eq. 28-29)
-    e = delta^2/2 + gamma sin^2(alpha - alpha0)/2, delta = cos(alpha - alpha0) - l, and
-    W = 2 e(l(u), alpha(u)) for the reduced diamond in the seed's units (the factor that
-    gives K = 2I at rest for gamma = 1).  At alpha = 3 pi/8, l = sin(pi/8) (gamma = 2,
-    alpha0 = pi/4): F = (2 sqrt 2, 0) and K = diag(8 + 4 sqrt 2, 0), exactly."""
-    d1, d2, gamma = sp.symbols("d1 d2 gamma")
-    alpha0 = sp.pi / 4
-    length = sp.sqrt((sp.cos(alpha0) - d1) ** 2 + (sp.sin(alpha0) - d2) ** 2)
-    alpha = sp.atan2(sp.sin(alpha0) - d2, sp.cos(alpha0) - d1)
-    delta = sp.cos(alpha - alpha0) - length
-    energy = 2 * (delta**2 / 2 + gamma * sp.sin(alpha - alpha0) ** 2 / 2)
-    at_rest = sp.hessian(energy, (d1, d2)).subs({d1: 0, d2: 0, gamma: 1})
-    assert sp.simplify(at_rest - 2 * sp.eye(2)) == sp.zeros(2, 2)  # the factor 2 of W
-    energy = energy.subs(gamma, 2)
-    point = {d1: sp.cos(alpha0) - sp.sin(sp.pi / 8) * sp.cos(3 * sp.pi / 8),
-             d2: sp.sin(alpha0) - sp.sin(sp.pi / 8) * sp.sin(3 * sp.pi / 8)}
-    forces = [sp.diff(energy, d) for d in (d1, d2)]
-    stiffness = [[sp.diff(f, d) for d in (d1, d2)] for f in forces]
-    u = np.array([float(point[d1]), float(point[d2])])
-    F = np.array([float(sp.N(f.subs(point), 30)) for f in forces])
-    K = np.array([[float(sp.N(k.subs(point), 30)) for k in row] for row in stiffness])
-    return u, F, K
-
-
 def test_turco_gamma_2_meets_a_simple_bifurcation_point_known_in_closed_form():
-    """The stability diagram's open case (docs/paths.md): the located point is the closed
-    form's, alpha = 3 pi/8, l = sin(pi/8), F = (2 sqrt 2, 0), K = diag(8 + 4 sqrt 2, 0)
-    with K21 = K22 = 0 (so [M | g'] loses rank under F2 held: two branches cross).
-    Tolerances: the event's s to event_tol = 1e-10 moves u by as much and K by
-    |dK/ds| * 1e-10 < 1e-8; 1e-8 on u, F, K, alpha, l."""
-    u, F, K = _turco_bifurcation_point()
+    """The located point is the closed form's (tests/turco_bifurcation.py): alpha = 3 pi/8,
+    l = sin(pi/8), F = (2 sqrt 2, 0), K = diag(8 + 4 sqrt 2, 0), so K21 = K22 = 0 and
+    [M | g'] loses rank under F2 held: two branches cross.  Tolerances: the event's s to
+    event_tol = 1e-10 moves u by as much and K by |dK/ds| * 1e-10 < 1e-8; 1e-8 on u, F,
+    K, alpha, l."""
+    u, F, K = turco_bifurcation.bifurcation_point()
     np.testing.assert_allclose(F, [2 * np.sqrt(2), 0.0], atol=1e-14)
     np.testing.assert_allclose(K, [[8 + 4 * np.sqrt(2), 0.0], [0.0, 0.0]], atol=1e-13)
     ds = _turco_gamma_2(1.0)
@@ -222,16 +199,27 @@ def test_turco_gamma_2_meets_a_simple_bifurcation_point_known_in_closed_form():
         assert abs(float(ds[f"{event}_s"]) - float(ds["limit_point_s"])) <= 1e-9
 
 
-@pytest.mark.xfail(strict=True, reason="open defect (docs/paths.md): integrated into the saddle, "
-                   "the path leaves a simple bifurcation point on either branch depending on the steps")
-def test_turco_gamma_2_goes_on_along_its_branch_whatever_the_steps():
-    """With at_bifurcation = "continue" (the default) the path goes on along the branch it
-    was on: the end state must not depend on max_step.  Today max_step 1 goes straight on
-    (Delta2* = 0.405 at Delta1* = 0.6) and max_step 0.05 turns onto the neutral branch
-    F1* = 2 sqrt 2 (Delta2* = 0.548).  Tolerance 1e-6: two step sequences at rtol 1e-10."""
-    ends = []
-    for max_step in (1.0, 0.05):
-        ds = _turco_gamma_2(max_step)
+@pytest.mark.parametrize("backend", ["auto", "numpy"])
+def test_turco_gamma_2_steps_over_its_bifurcation_point_along_its_branch_whatever_the_steps(backend):
+    """At a simple bifurcation point the path goes on along the branch it was on
+    (at_bifurcation = "continue"), whatever the steps (ncstab.paths.over_steps).  Before
+    over steps, max_step 0.05 came out on the crossing branch of neutral equilibria
+    (F1* = 2 sqrt 2, D2* = 0.548 at D1* = 0.6) with a limit point found in the rounding of
+    det K = 0 there; the other step sizes went straight on.
+
+    Expected: the end state is the closed-form equilibrium F2 = 0 at D1* = 0.6 on the branch
+    followed (Newton on the energy from D2* = 0.40; the neutral branch's is at 0.548),
+    to 1e-10 (both projected onto equilibrium to newton_tol = 1e-12, |K^-1| < 1); the
+    located point is the same for every step size to 1e-9 in s (two locations to
+    event_tol = 1e-10, and the over step's arclength to O(kappa^2 L^3) < 1e-12)."""
+    u_end, F_end = turco_bifurcation.equilibrium(0.6, 0.40)
+    located = []
+    for max_step in (1.0, 0.05, 0.01, 0.002):
+        ds = _turco_gamma_2(max_step, backend)
+        assert str(ds["status"].item()) == "finished"
         last = int(ds["n_steps"]) - 1
-        ends.append(np.concatenate([ds["u"].values[last], ds["F"].values[last]]))
-    np.testing.assert_allclose(ends[0], ends[1], atol=1e-6)
+        np.testing.assert_allclose(ds["u"].values[last], u_end, rtol=0, atol=1e-10)
+        np.testing.assert_allclose(ds["F"].values[last], F_end, rtol=0, atol=1e-10)
+        located.append([float(ds[f"{event}_s"]) for event in ("limit_point", "hill_loss", "controllability_loss")])
+    located = np.array(located)
+    assert np.ptp(located) <= 1e-9, located

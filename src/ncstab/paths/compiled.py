@@ -16,9 +16,11 @@ stepper's cycle tables), the same cuts at stage targets, stop events and contact
 crossing cuts the step; a ``no_tension`` law's normal contact opens or closes
 where its overlap crosses zero and the law's open or closed branch serves
 from there; the direction of motion kept, as in
-:func:`ncstab.paths.contacts.switch_contacts`).  It differs from the numpy
-stepper at most by rounding (numpy may evaluate transcendental functions with
-SIMD code, numba with the C library), and its result for a case depends
+:func:`ncstab.paths.contacts.switch_contacts`), and over steps across simple
+bifurcation points (:mod:`ncstab.paths.over_steps`).  Its numbers are the
+numpy stepper's bit for bit where the arithmetic is the same, which the
+tests check for every law (alpha from the C library's ``atan2`` in both:
+:mod:`ncstab.paths.c_library`), and its result for a case depends
 neither on the batch nor on the thread.  Like the numpy stepper it orients
 each tangent by continuity with the motion at the start of its step
 (:func:`ncstab.paths.tangent_field.path_tangent`), so both go straight on
@@ -40,10 +42,11 @@ compiled as a C callback (:data:`LAW_SIGNATURE`, under a second), so a new law
 does not compile the loop again.  The cases of a stage run side by side on
 threads (the loop releases the GIL; :mod:`ncstab.paths.compiled_stages`).
 
-The loop's text is a template in three parts, :mod:`ncstab.paths.loop_model`
+The loop's text is a template in four parts, :mod:`ncstab.paths.loop_model`
 (the model at a state, the tangent, the indicators),
 :mod:`ncstab.paths.loop_steps` (a DOP853 step, the projection, event
-location, stored states) and :mod:`ncstab.paths.loop_cases` (each case
+location, stored states), :mod:`ncstab.paths.loop_over_steps` (the over step
+across a simple bifurcation point) and :mod:`ncstab.paths.loop_cases` (each case
 through its stage); :mod:`ncstab.paths.compiled_source` pastes them into
 one module, writes it to the cache and imports it.
 """

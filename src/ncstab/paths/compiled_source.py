@@ -33,6 +33,7 @@ from ncstab.paths.compiled import FIRST_PARAMETER
 from ncstab.paths.events import INDICATOR_EVENTS, INDICATOR_GAP, SIGN_NOISE, TINY
 from ncstab.paths.contacts import ENTRY_NOISE, ENTRY_PROBE
 from ncstab.paths.domain_edge import EDGE_HALVINGS
+from ncstab.paths.over_steps import OVER_ALIGNMENT, OVER_MARGIN
 
 __all__ = ["CACHE_KIND", "kernel_body", "kernel_source", "load_module", "loop_source", "template_body"]
 
@@ -53,8 +54,8 @@ def kernel_body(kernel: Callable[..., list]) -> str:
 
 def loop_source(rate_form: bool) -> str:
     """The stage loop of every law of one form as the text of a module: the bodies of
-    the three template parts (:mod:`ncstab.paths.loop_model`, :mod:`~ncstab.paths.loop_steps`,
-    :mod:`~ncstab.paths.loop_cases`) one after the other.
+    the four template parts (:mod:`ncstab.paths.loop_model`, :mod:`~ncstab.paths.loop_steps`,
+    :mod:`~ncstab.paths.loop_over_steps`, :mod:`~ncstab.paths.loop_cases`) one after the other.
 
     A module on disk, not closures: numba caches the machine code of a file's
     functions next to it, so the loop compiles once per form and machine, not
@@ -62,9 +63,9 @@ def loop_source(rate_form: bool) -> str:
     first-class function of :data:`ncstab.paths.compiled.LAW_SIGNATURE`), so a new law compiles its
     kernel only.
     """
-    from ncstab.paths import loop_cases, loop_model, loop_steps
+    from ncstab.paths import loop_cases, loop_model, loop_over_steps, loop_steps
 
-    parts = (loop_model.model_part, loop_steps.steps_part, loop_cases.cases_part)
+    parts = (loop_model.model_part, loop_steps.steps_part, loop_over_steps.over_part, loop_cases.cases_part)
     body = "\n".join(template_body(part) for part in parts)
     body = body.replace("cache=False", "cache=True").replace("return StageLoop(run_cases, start)", "LOOP = StageLoop(run_cases, start)")
     header = f'''"""The compiled stage loop of the laws {"with" if rate_form else "without"} a rate form,
@@ -82,6 +83,7 @@ from ncstab.paths.compiled import (
 from ncstab.paths.contacts import ENTRY_NOISE, ENTRY_PROBE
 from ncstab.paths.domain_edge import EDGE_HALVINGS
 from ncstab.paths.events import CYCLE_COLUMN, INDICATOR_EVENTS, INDICATOR_GAP, SIGN_NOISE, TARGET_COLUMN, TINY, TURNING_COLUMN
+from ncstab.paths.over_steps import OVER_ALIGNMENT, OVER_MARGIN
 
 rate_form = {rate_form!r}
 '''
@@ -188,7 +190,7 @@ def load_module(source: str, prefix: str) -> Any:
     # The module's text, and what it imports: the constants of ncstab.paths.compiled and the
     # event columns (numba freezes imported globals into the cached machine code).
     stamp = repr((INDICATOR_EVENTS, INDICATOR_GAP, SIGN_NOISE, TINY, ENTRY_PROBE, ENTRY_NOISE, EDGE_HALVINGS,
-                  numba.__version__, np.__version__))
+                  OVER_ALIGNMENT, OVER_MARGIN, numba.__version__, np.__version__))
     own = (Path(__file__).parent / "compiled.py").read_text(encoding="utf-8")
     digest = hashlib.sha256((source + stamp + own).encode()).hexdigest()[:20]
     name = f"{prefix}_{digest}"

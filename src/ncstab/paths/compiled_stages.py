@@ -141,7 +141,7 @@ class CompiledStages:
                     continue
                 recorder = stepper.recorder
                 # room for the next step's pieces of every case
-                pieces = stepper.options.pieces(np.minimum(stepper.step_size[cases], stepper.options.max_step))
+                pieces = stepper.options.pieces(stepper.next_step_lengths(cases))
                 recorder.reserve_within_limit(int((recorder.count[cases] + STEPS_PER_CALL * pieces).max()))
                 lam_before, count_before = stepper.y[cases, stepper.layout.lam], recorder.count[cases]
                 secondary_state = np.ascontiguousarray(stages.secondary_state, dtype=np.int64)
@@ -150,7 +150,7 @@ class CompiledStages:
                     stepper.step_size, stepper.arclength, stepper.accepted, stepper.rejected, stepper.located,
                     stages.force_controlled, control_rows(stages), stages.lam_end,
                     stages.target_sign, stages.orientation, stages.reference, secondary_state,
-                    stages.cycles_done, int(stepper.turns.turns[k]), int(stepper.turns.first[k]),
+                    stepper.branch_size, stepper.over_length, stages.cycles_done, int(stepper.turns.turns[k]), int(stepper.turns.first[k]),
                     turn_closed, turn_values,
                     self.law, self.parameters, self.cos0, self.sin0, stepper.stop_table[k], stepper.break_columns,
                     event_columns,
@@ -202,7 +202,7 @@ class CompiledStages:
         if stepper.recorder.limit is None:
             return
         paused = cases[self.code[cases] == Outcome.PAUSED]
-        pieces = stepper.options.pieces(np.minimum(stepper.step_size[paused], stepper.options.max_step))
+        pieces = stepper.options.pieces(stepper.next_step_lengths(paused))
         fits = stepper.recorder.fits(paused, pieces)
         stepper.fail_memory(paused[~fits])
 

@@ -1,4 +1,4 @@
-"""Template, part 3 of 3, of the compiled stage loop: each case through its stage.
+"""Template, part 4 of 4, of the compiled stage loop: each case through its stage.
 
 Pasted after :mod:`ncstab.paths.loop_model` and :mod:`ncstab.paths.loop_steps`
 (see the first): ``run_cases`` takes each case from its state to the end of its
@@ -29,9 +29,9 @@ __all__ = ["cases_part"]
 
 
 def cases_part(
-    rate_form, M, admissible_at, angle, dense_coefficients, dense_value, domain_detail, dop853, indicators,
-    initial_step_size, locate, motion, motion_product, n_columns, njit, piece_count, project, rhs, sign, state_slot,
-    store_event, store_record, target_column,
+    rate_form, M, admissible_at, angle, branch_size, dense_coefficients, dense_value, domain_detail, dop853,
+    indicators, initial_step_size, locate, motion, motion_product, n_columns, next_over_length, njit, over_step,
+    piece_count, project, rhs, sign, state_slot, store_event, store_record, target_column,
 ) -> StageLoop:
     """Define ``run_cases`` and ``start`` and return them (a template: see the module docstring)."""
     cycle_column = CYCLE_COLUMN
@@ -47,7 +47,7 @@ def cases_part(
     @numba.njit(cache=False, error_model="numpy", nogil=True)
     def run_cases(cases, y, derivative, indicator_table, step_size, arclength, accepted, rejected, located,
                   force_controlled, control_rows, lam_end, target_sign, orientation, reference, secondary_state,
-                  cycles_done, turns, first_turn, turn_closed, turn_values,
+                  branch_sizes, over_length, cycles_done, turns, first_turn, turn_closed, turn_values,
                   law, parameters, cos0, sin0, stop_row, break_row, event_columns, event_found, event_values, event_stage,
                   stage_number, recorded, record_count, code, detail, rtol, atol, newton_tol,
                   newton_max_iter, min_step, max_step, max_steps, event_tol, sample_step, max_pieces):
@@ -74,9 +74,9 @@ def cases_part(
         coefficients = np.empty((_POWER, M))
         located_states = np.empty((n_columns, M))
         ev = np.empty(17)
-        aux = np.empty(8)
+        aux = np.empty(10)
         ev_new = np.empty(17)
-        aux_new = np.empty(8)
+        aux_new = np.empty(10)
         orient = np.empty(6)  # the orientation, then the reference (the motion at the step's start)
         plain = np.full(6, np.nan)  # the orientation alone (contacts.switch_contacts sets the reference aside)
         values = np.empty(n_columns)
@@ -91,7 +91,8 @@ def cases_part(
         y_end = np.empty(M)
         dy_end = np.empty(M)
         ev_end = np.empty(17)
-        aux_end = np.empty(8)
+        aux_end = np.empty(10)
+        y_half = np.empty(M)
         for i in cases:
             fc0, fc1 = force_controlled[i, 0], force_controlled[i, 1]
             ctl = control_rows[i]
@@ -105,46 +106,58 @@ def cases_part(
             for k in range(5):
                 orient[1 + k] = reference[i, k]
             code[i] = Outcome_PAUSED
-            while record_count[i] + piece_count(min(step_size[i], max_step), sample_step, max_pieces) <= capacity:
+            while record_count[i] + piece_count(max(min(step_size[i], max_step), over_length[i]), sample_step,
+                                                max_pieces) <= capacity:
                 h = min(step_size[i], max_step)
                 for j in range(M):
                     y0[j] = y[i, j]
-                err = dop853(y0, derivative[i], h, rtol, atol, fc0, fc1, ctl, orient, law, p, c0, s0,
-                             stages, y_raw, work, ev_new, aux_new)
-                for j in range(M):
-                    y_new[j] = y_raw[j]
-                if not rate_form and np.isfinite(err) and not project(
-                    y_new, fc0, fc1, ctl, law, p, c0, s0, newton_tol, newton_max_iter, ev_new
-                ):
-                    err = np.inf
-                accept = err <= 1.0
-                if err == 0:
-                    factor = 10.0
-                elif np.isfinite(err):
-                    factor = min(max(0.9 / np.sqrt(np.sqrt(np.sqrt(err))), 0.2), 10.0)  # integrator.step_factor
-                else:
-                    factor = 0.25
-                if not accept:
-                    factor = min(factor, 0.9)
-                step_size[i] = min(max(h * factor, 0.0), max_step)
-                if not accept:
-                    rejected[i] += 1
-                    if step_size[i] < min_step:
-                        code[i] = Outcome_STEP_SIZE_UNDERFLOW
-                        break
-                    continue
-                if rate_form:  # the last DOP853 stage was evaluated at the end state
+                over = False
+                if not rate_form and over_length[i] > 0:  # over_steps.take_over_steps
+                    arc = over_step(over_length[i], y0, derivative[i], fc0, fc1, ctl, orient, law, p, c0, s0,
+                                    newton_tol, newton_max_iter, y_raw, y_new, dy_new, ev_new, aux_new, y_half, ev,
+                                    coefficients)
+                    over_length[i] = 0.0
+                    over = arc > 0
+                    if over:
+                        h = arc
+                if not over:
+                    err = dop853(y0, derivative[i], h, rtol, atol, fc0, fc1, ctl, orient, law, p, c0, s0,
+                                 stages, y_raw, work, ev_new, aux_new)
                     for j in range(M):
-                        dy_new[j] = stages[_STAGES, j]
-                else:
-                    rhs(y_new, fc0, fc1, ctl, orient, law, p, c0, s0, dy_new, ev_new, aux_new)
+                        y_new[j] = y_raw[j]
+                    if not rate_form and np.isfinite(err) and not project(
+                        y_new, fc0, fc1, ctl, law, p, c0, s0, newton_tol, newton_max_iter, ev_new
+                    ):
+                        err = np.inf
+                    accept = err <= 1.0
+                    if err == 0:
+                        factor = 10.0
+                    elif np.isfinite(err):
+                        factor = min(max(0.9 / np.sqrt(np.sqrt(np.sqrt(err))), 0.2), 10.0)  # integrator.step_factor
+                    else:
+                        factor = 0.25
+                    if not accept:
+                        factor = min(factor, 0.9)
+                    step_size[i] = min(max(h * factor, 0.0), max_step)
+                    if not accept:
+                        rejected[i] += 1
+                        if step_size[i] < min_step:
+                            code[i] = Outcome_STEP_SIZE_UNDERFLOW
+                            break
+                        continue
+                    if rate_form:  # the last DOP853 stage was evaluated at the end state
+                        for j in range(M):
+                            dy_new[j] = stages[_STAGES, j]
+                    else:
+                        rhs(y_new, fc0, fc1, ctl, orient, law, p, c0, s0, dy_new, ev_new, aux_new)
                 # --- the step's pieces (options.sample_step): the ends of all but the
                 # last on the step's interpolant, projected for a total form
                 pieces = piece_count(h, sample_step, max_pieces)
-                have_dense = False
+                have_dense = over  # (an over step has its interpolant already)
                 if pieces > 1:
-                    dense_coefficients(y0, y_raw, h, fc0, fc1, ctl, orient, law, p, c0, s0, stages,
-                                       coefficients, work, ev, aux)
+                    if not have_dense:
+                        dense_coefficients(y0, y_raw, h, fc0, fc1, ctl, orient, law, p, c0, s0, stages,
+                                           coefficients, work, ev, aux)
                     have_dense = True
                     projected = True
                     for k in range(pieces - 1):
@@ -320,6 +333,10 @@ def cases_part(
                     arclength[i] += reach
                     if piece == 1:
                         accepted[i] += 1
+                    size = branch_size(aux_end, orient)  # stepper._commit: the next over step
+                    if not rate_form:
+                        over_length[i] = next_over_length(branch_sizes[i], size, reach, newton_tol)
+                    branch_sizes[i] = size
                     # stepper._commit: the reference of the next piece, the motion (du, dF, dlambda)
                     orient[1], orient[2], orient[3], orient[4], orient[5] = (
                         aux_end[2], aux_end[3], aux_end[6], aux_end[7], aux_end[4]
@@ -370,7 +387,7 @@ def cases_part(
         (stage_entry._estimate_first_steps)."""
         state = np.empty(M)
         ev = np.empty(17)
-        aux = np.empty(8)
+        aux = np.empty(10)
         f1 = np.empty(M)
         orient = np.empty(6)
         for i in cases:

@@ -1,7 +1,8 @@
-"""Template, part 1 of 3, of the compiled stage loop: the reduced diamond's model.
+"""Template, part 1 of 4, of the compiled stage loop: the reduced diamond's model.
 
 The body of :func:`model_part` is pasted, with the bodies of
-:func:`ncstab.paths.loop_steps.steps_part` and
+:func:`ncstab.paths.loop_steps.steps_part`,
+:func:`ncstab.paths.loop_over_steps.over_part` and
 :func:`ncstab.paths.loop_cases.cases_part` after it, into one generated module
 per form of law (:func:`ncstab.paths.compiled_source.loop_source`), which
 numba compiles and caches; the function itself is never called.  This part
@@ -97,7 +98,8 @@ def model_part(rate_form: bool) -> None:
         # tangent_field._path_tangent_2 with du/dv = I, dF/dv = K, then _continue_reference:
         # orient = (the stage's orientation, the reference: the motion (du, dF, dlambda) at
         # the start of the step, NaN for none); aux = (dv0, dv1, du0, du1, dlam, det_m, dF0,
-        # dF1), the tangent flipped where its motion (du, dF, dlam) reverses the reference
+        # dF1, |c| the cofactor vector's size, 1.0 where flipped), the tangent flipped where
+        # its motion (du, dF, dlam) reverses the reference
         k00, k01, k10, k11 = ev[6], ev[7], ev[8], ev[9]
         m00 = k00 if fc0 else 1.0
         m01 = k01 if fc0 else 0.0
@@ -119,13 +121,16 @@ def model_part(rate_form: bool) -> None:
         # over the reference's norm is negative: where the sum is, the reference being
         # finite (a unit motion) and not zero; NaN (no reference) flips nothing
         dot = m0 * orient[1] + m1 * orient[2] + m2 * orient[3] + m3 * orient[4] + m4 * orient[5]
+        aux[8] = norm
         if dot < 0:
             aux[0] = -(dv0 * scale)
             aux[1] = -(dv1 * scale)
             m0, m1, m2, m3, m4 = -m0, -m1, -m2, -m3, -m4
+            aux[9] = 1.0
         else:
             aux[0] = dv0 * scale
             aux[1] = dv1 * scale
+            aux[9] = 0.0
         aux[2] = m0
         aux[3] = m1
         aux[4] = m4
@@ -162,6 +167,22 @@ def model_part(rate_form: bool) -> None:
     # inlining it everywhere costs seconds of compilation for no measurable gain.
     rhs_hot = hot(rhs_py)  # noqa: F841 (read by parts 2 and 3)
     rhs = njit(rhs_py)  # noqa: F841
+
+    @njit
+    def alignment(aux, orient):
+        # the cosine of the (continued) motion in aux with the reference in orient[1:6]
+        # (over_steps: sum(motion * reference) / sqrt(sum(reference * reference)), in order)
+        dot = aux[2] * orient[1] + aux[3] * orient[2] + aux[6] * orient[3] + aux[7] * orient[4] + aux[4] * orient[5]
+        square = orient[1] * orient[1] + orient[2] * orient[2] + orient[3] * orient[3]
+        square += orient[4] * orient[4] + orient[5] * orient[5]
+        return dot / np.sqrt(square)
+
+    @njit
+    def branch_size(aux, orient):
+        # |PathTangent.branch| (tangent_field._continue_reference): |the cosine| times |c|, or
+        # |c| where there is no reference; the next over step's length reads it (over_steps)
+        product = alignment(aux, orient)
+        return abs(product if np.isfinite(product) else 1.0) * aux[8]
 
     @njit
     def motion(ev, aux, out):

@@ -1,4 +1,4 @@
-"""Template, part 2 of 3, of the compiled stage loop: one DOP853 step and what follows it.
+"""Template, part 2 of 4, of the compiled stage loop: one DOP853 step and what follows it.
 
 Pasted after :func:`ncstab.paths.loop_model.model_part` (see that module): the
 DOP853 stage sums and error norm, the Newton projection onto equilibrium, the

@@ -93,11 +93,13 @@ def _interior_ends(stepper: BatchStepper, steps: AcceptedSteps, pieces: np.ndarr
     the steps whose every interior end projected."""
     layout = stepper.layout
     batch, stage = steps.batch, steps.stage
-    coefficients = dense_output(
-        lambda yy: state_derivative(batch, stage, yy, layout)[0], steps.y_start, steps.y_raw, steps.h,
-        steps.dop853_stages,
-    )
-    steps.piece = Piece(coefficients, steps.y_start, steps.h, np.zeros(steps.cases.size))
+    if steps.piece is None:  # (an over step has its linear interpolant already)
+        coefficients = dense_output(
+            lambda yy: state_derivative(batch, stage, yy, layout)[0], steps.y_start, steps.y_raw, steps.h,
+            steps.dop853_stages,
+        )
+        steps.piece = Piece(coefficients, steps.y_start, steps.h, np.zeros(steps.cases.size))
+    coefficients = steps.piece.dense
     samples = np.full((int(pieces.max()) - 1,) + steps.y_start.shape, np.nan)
     projected = np.ones(steps.cases.size, dtype=bool)
     for k in range(1, int(pieces.max())):

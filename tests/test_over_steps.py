@@ -1,0 +1,60 @@
+"""Over steps across simple bifurcation points (:mod:`ncstab.paths.over_steps`): the
+trigger, the arclength of an over step and its interpolant, checked against exact
+properties.  The paths through such points are tested in tests/test_bifurcations.py
+(Turco, gamma = 2, F2* = 0, against its closed form) and tests/test_paths_engine.py."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ncstab.paths.integrator import evaluate_dense
+from ncstab.paths.over_steps import arc_length, next_over_steps, over_distance, over_interpolant
+
+
+def test_the_next_over_step_reaches_as_far_past_the_extrapolated_zero_as_the_path_is_before_it():
+    """The branch test falling linearly from b0 to b1 over a step h has its zero at
+    d = h b1 / (b0 - b1) ahead; the over step is 2 d, tried only within over_distance
+    (1e-4 at newton_tol = 1e-12) and only where the test falls toward zero."""
+    assert over_distance(1e-12) == pytest.approx(1e-4, rel=1e-15)
+    h = np.array([1e-3, 1e-3, 1e-3, 1e-3, 1e-3, 0.0])
+    before = np.array([1.0, 1.0, 0.5, 1.0, np.nan, 1.0])
+    after = np.array([0.05, 0.5, 0.6, 0.0, 0.1, 0.5])
+    lengths = next_over_steps(before, after, h, 1e-12)
+    d = 1e-3 * 0.05 / 0.95  # 5.26e-5 ahead: within 1e-4
+    np.testing.assert_allclose(lengths[0], 2 * d, rtol=1e-15)
+    # 1e-3 ahead (too far), rising, exactly zero (no extrapolation), unknown, no length
+    np.testing.assert_array_equal(lengths[1:], 0.0)
+
+
+@pytest.mark.parametrize("angle", [1e-2, 5e-2, 1e-1])
+def test_the_arclength_of_an_over_step_is_exact_to_fifth_order_on_a_circle(angle):
+    """Three points of a circle of radius R at 0, angle/2, angle: the chords of one and two
+    pieces extrapolated give R angle - R angle^5 / 7680 + O(angle^7) (the series of
+    2 R sin(angle/2) and 4 R sin(angle/4) written out); the points in 5 dimensions
+    (u, F, lambda), the circle in a tilted plane."""
+    radius = 3.0
+    e1 = np.array([1.0, 2.0, 0.0, -1.0, 0.5])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.array([0.0, 1.0, 1.0, 2.0, 0.0])
+    e2 -= (e2 @ e1) * e1
+    e2 /= np.linalg.norm(e2)
+    points = [radius * (np.cos(t) * e1 + np.sin(t) * e2)[None] for t in (0.0, angle / 2, angle)]
+    arc = arc_length(*points)[0]
+    expected = radius * angle - radius * angle**5 / 7680
+    assert abs(arc - expected) <= 1e-3 * radius * angle**5 / 7680 + 1e-15
+
+
+def test_the_over_interpolant_is_the_predictor_at_sigma_of_f():
+    """evaluate_dense of the interpolant at fraction f is y0 + sigma(f) dy/ds with
+    sigma(f) = L f + (arc - L) f (1 - f): at f = 1 the predictor's end y0 + L dy/ds, and
+    the arclength term arc f to second order (rounding: 1e-15 relative)."""
+    rng = np.random.default_rng(1)
+    y0, rate = rng.normal(size=(3, 4)), rng.normal(size=(3, 4))
+    length = np.array([1e-4, 2e-4, 5e-5])
+    arc = length * (1 + np.array([1e-3, -2e-3, 5e-4]))
+    coefficients = over_interpolant(rate, length, arc)
+    for f in (0.0, 0.25, 0.5, 0.9, 1.0):
+        sigma = length * f + (arc - length) * f * (1 - f)
+        value = evaluate_dense(y0, coefficients, np.full(3, f))
+        np.testing.assert_allclose(value, y0 + sigma[:, None] * rate, rtol=0, atol=1e-15)
