@@ -179,24 +179,28 @@ def _turco_gamma_2(max_step: float, backend: str = "auto"):
     return path.to_dataset().squeeze()
 
 
-def test_turco_gamma_2_meets_a_simple_bifurcation_point_known_in_closed_form():
-    """The located point is the closed form's (tests/turco_bifurcation.py): alpha = 3 pi/8,
-    l = sin(pi/8), F = (2 sqrt 2, 0), K = diag(8 + 4 sqrt 2, 0), so K21 = K22 = 0 and
-    [M | g'] loses rank under F2 held: two branches cross.  Tolerances: the event's s to
-    event_tol = 1e-10 moves u by as much and K by |dK/ds| * 1e-10 < 1e-8; 1e-8 on u, F,
-    K, alpha, l."""
+@pytest.mark.parametrize("backend", ["auto", "numpy"])
+def test_turco_gamma_2_meets_a_simple_bifurcation_point_known_in_closed_form(backend):
+    """The located bifurcation is the closed form's (tests/turco_bifurcation.py): alpha =
+    3 pi/8, l = sin(pi/8), F = (2 sqrt 2, 0), K = diag(8 + 4 sqrt 2, 0), so K21 = K22 = 0
+    and [M | g'] loses rank under F2 held: two branches cross.  It is a `bifurcation`,
+    not a `limit_point` (det K = 0 where the path does not turn: the branch test changes
+    sign with it), and Hill's condition and controllability are lost there too.
+    Tolerances: the event's s to event_tol = 1e-10 moves u by as much and K by
+    |dK/ds| * 1e-10 < 1e-8; 1e-8 on u, F, K, alpha, l."""
     u, F, K = turco_bifurcation.bifurcation_point()
     np.testing.assert_allclose(F, [2 * np.sqrt(2), 0.0], atol=1e-14)
     np.testing.assert_allclose(K, [[8 + 4 * np.sqrt(2), 0.0], [0.0, 0.0]], atol=1e-13)
-    ds = _turco_gamma_2(1.0)
+    ds = _turco_gamma_2(1.0, backend)
     assert str(ds["status"].item()) == "finished"
-    np.testing.assert_allclose(ds["limit_point_u"].values, u, atol=1e-8)
-    np.testing.assert_allclose(ds["limit_point_F"].values, F, atol=1e-8)
-    np.testing.assert_allclose(ds["limit_point_K"].values, K, atol=1e-8)
-    assert abs(float(ds["limit_point_alpha"]) - 3 * np.pi / 8) <= 1e-8
-    assert abs(float(ds["limit_point_l"]) - np.sin(np.pi / 8)) <= 1e-8
-    for event in ("hill_loss", "controllability_loss"):  # all three vanish together there
-        assert abs(float(ds[f"{event}_s"]) - float(ds["limit_point_s"])) <= 1e-9
+    np.testing.assert_allclose(ds["bifurcation_u"].values, u, atol=1e-8)
+    np.testing.assert_allclose(ds["bifurcation_F"].values, F, atol=1e-8)
+    np.testing.assert_allclose(ds["bifurcation_K"].values, K, atol=1e-8)
+    assert abs(float(ds["bifurcation_alpha"]) - 3 * np.pi / 8) <= 1e-8
+    assert abs(float(ds["bifurcation_l"]) - np.sin(np.pi / 8)) <= 1e-8
+    assert np.isnan(float(ds["limit_point_s"])) and np.isnan(float(ds["turning_point_s"]))
+    for event in ("hill_loss", "controllability_loss"):  # they vanish together there
+        assert abs(float(ds[f"{event}_s"]) - float(ds["bifurcation_s"])) <= 1e-9
 
 
 @pytest.mark.parametrize("backend", ["auto", "numpy"])
@@ -220,6 +224,31 @@ def test_turco_gamma_2_steps_over_its_bifurcation_point_along_its_branch_whateve
         last = int(ds["n_steps"]) - 1
         np.testing.assert_allclose(ds["u"].values[last], u_end, rtol=0, atol=1e-10)
         np.testing.assert_allclose(ds["F"].values[last], F_end, rtol=0, atol=1e-10)
-        located.append([float(ds[f"{event}_s"]) for event in ("limit_point", "hill_loss", "controllability_loss")])
+        located.append([float(ds[f"{event}_s"]) for event in ("bifurcation", "hill_loss", "controllability_loss")])
     located = np.array(located)
     assert np.ptp(located) <= 1e-9, located
+
+
+@pytest.mark.parametrize(("direction", "guess"), [(1, 0.55), (-1, 0.16)])
+def test_turco_gamma_2_switches_onto_the_branch_of_neutral_equilibria(direction, guess):
+    """at_bifurcation = switch on the reduced diamond (the numpy stepper; the compiled one
+    says it does not cover it): from the point, the path follows the crossing branch,
+    on which F1* = 2 sqrt 2 and F2* = 0 all along (so det K = 0 on it), either way, to
+    D1* = 0.6.  Expected: F1* constant to 1e-10 after the point (every state projected to
+    newton_tol = 1e-12), and the end state the closed-form equilibrium F2 = 0 at D1* = 0.6
+    on that branch (Newton on the energy from D2* = 0.55 or 0.16; the branch followed
+    before the point ends at 0.405), to 1e-10."""
+    programme = [TURCO_PROGRAMME[0], {**TURCO_PROGRAMME[1], "at_bifurcation": {"switch": True, "direction": direction}}]
+    path = follow(SystemSpec(secondary_contacts="ignore"), "turco", programme,
+                  {"gamma": 2.0, "F2l": 0.0, "alpha0": np.pi / 4})
+    assert path.results[0].engine.startswith("numpy stepper (")
+    ds = path.to_dataset().squeeze()
+    assert str(ds["status"].item()) == "finished"
+    n = int(ds["n_steps"])
+    after = ds["s"].values[:n] > float(ds["bifurcation_s"]) + 1e-6
+    assert after.sum() > 3
+    np.testing.assert_allclose(ds["F"].values[:n][after, 0], 2 * np.sqrt(2), rtol=0, atol=1e-10)
+    u_end, F_end = turco_bifurcation.equilibrium(0.6, guess)
+    assert abs(u_end[1] - 0.405) > 0.1  # not the branch followed before the point
+    np.testing.assert_allclose(ds["u"].values[n - 1], u_end, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(ds["F"].values[n - 1], F_end, rtol=0, atol=1e-10)

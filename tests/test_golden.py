@@ -93,8 +93,8 @@ def _documented_changes(golden: xr.Dataset, computed: xr.Dataset) -> xr.Dataset:
     and, in the variables (issue 16, dynamic stability):
 
     * the events ``bifurcation`` and ``divergence`` have their tables
-      (``bifurcation_s``...): never found on the reduced diamond, whose fused
-      kernel keeps the ten indicator columns of the seed's events;
+      (``bifurcation_s``...): never found in these studies but at the known
+      difference below (the reduced diamond got its branch test on 2026-12-02);
     * ``flutter`` is the growth rate max Re s of the linearised dynamics
       I s^2 + K (grains of equal mass), not the discriminant of K: checked
       here against an independent eigenvalue computation on the golden K, and
@@ -128,10 +128,17 @@ def _documented_changes(golden: xr.Dataset, computed: xr.Dataset) -> xr.Dataset:
     assert "history" not in golden.attrs
     assert computed.attrs["history"] == f"ncstab {computed.attrs['ncstab_version']}: the study's cases followed along its loading programme"
     changed.attrs["history"] = computed.attrs["history"]
+    known = xr.zeros_like(computed["n_steps"], dtype=bool)
+    for case in KNOWN_DIFFERENCES.get(computed.attrs["study_name"], []):
+        one = xr.ones_like(known)
+        for key, value in case.items():
+            one = one & (computed[key] == value)
+        known = known | one
     for name in computed.data_vars:
         if name.startswith(("bifurcation_", "divergence_")) or name == "flutter_onset_frequency":
             found = computed[name]
-            assert bool(np.all(found.isnull() | (found == -1))), f"{name} found on the reduced diamond"
+            outside = found.where(~known)  # (a known difference is checked on its own)
+            assert bool(np.all(outside.isnull() | (outside == -1))), f"{name} found on the reduced diamond"
             changed[name] = found
     changed["flutter"] = _checked_flutter(golden, computed)
     for name in ("step", "cycle"):

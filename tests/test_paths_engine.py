@@ -868,12 +868,12 @@ def test_sampled_and_long_steps_find_the_events_of_a_tight_reference():
     determinant vanish together (the cofactor tangent (K22, -K21, K22) passes through
     zero).  Before over steps (ncstab.paths.over_steps) the outcome there depended on the
     steps: the tight reference turned back (turning_point and controllability_loss),
-    steps of up to 1 went straight on (limit_point and controllability_loss).  Now every
+    steps of up to 1 went straight on (a limit_point and controllability_loss).  Now every
     option set steps over the point along the branch it was on: the tight reference
     (steps of at most 0.002, rtol 1e-12), the default sampling (sign checks and stored
     states every 0.02 on long steps) and steps of up to 1 with their ends the only sign
-    checks agree in every status, every event found and every end state; the events'
-    arclengths agree: hill_loss to 1e-9 (measured 2e-11); the events at the bifurcation
+    checks agree in every status, every event found (the point a `bifurcation`) and every
+    end state; the events' arclengths agree: hill_loss to 1e-9 (measured 2e-11); the events at the bifurcation
     point to 5e-6 (measured 9e-7 for the default sampling: located on a DOP853
     interpolant through the point, where the field is singular).  (The case gamma = 0.1,
     alpha0 = pi/4 also failed once, left_domain where it finishes: its long step reached
@@ -891,7 +891,8 @@ def test_sampled_and_long_steps_find_the_events_of_a_tight_reference():
     assert default["accepted_steps"].sum() < reference["accepted_steps"].sum() / 10
     events = [name for name in EVENTS if f"{name}_stage" in reference]
     found = {name: reference[f"{name}_stage"].values >= 0 for name in events}
-    assert found["limit_point"][1, 0] and found["controllability_loss"][1, 0] and not found["turning_point"].any()
+    assert found["bifurcation"][1, 0] and found["controllability_loss"][1, 0]
+    assert not found["turning_point"].any() and not found["limit_point"].any()
     for run_ in (default, only_steps):
         np.testing.assert_array_equal(run_["status"].values, reference["status"].values)
         last = run_["n_steps"] - 1
@@ -899,7 +900,7 @@ def test_sampled_and_long_steps_find_the_events_of_a_tight_reference():
                                    reference["u"].isel(step=reference["n_steps"] - 1).values, rtol=0, atol=1e-8)
         for name in events:
             np.testing.assert_array_equal(run_[f"{name}_stage"].values >= 0, found[name], err_msg=name)
-            at_point = name in ("controllability_loss", "limit_point")
+            at_point = name in ("controllability_loss", "bifurcation")
             np.testing.assert_allclose(run_[f"{name}_s"].values, reference[f"{name}_s"].values, rtol=0,
                                        atol=5e-6 if at_point else 1e-9, err_msg=name)
     # (and no longer lose a case: the step out of the domain is completed to its edge, past the target)

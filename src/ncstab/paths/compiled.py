@@ -164,6 +164,8 @@ def unsupported_reason(batch: Any, programme: Any) -> str | None:
     kernels = batch._kernels
     if kernels is None or len(kernels) != (2 if batch.law.definition.no_tension else 1) or batch.n_dof != 2:
         return "this system has no fused state kernel; it runs on the numpy stepper"
+    if any(getattr(stage, "at_bifurcation", "continue") != "continue" for stage in programme.stages):
+        return "switching branches at a bifurcation point (at_bifurcation) runs on the numpy stepper"
     return None
 
 

@@ -82,7 +82,9 @@ from ncstab.paths.compiled import (
 )
 from ncstab.paths.contacts import ENTRY_NOISE, ENTRY_PROBE
 from ncstab.paths.domain_edge import EDGE_HALVINGS
-from ncstab.paths.events import CYCLE_COLUMN, INDICATOR_EVENTS, INDICATOR_GAP, SIGN_NOISE, TARGET_COLUMN, TINY, TURNING_COLUMN
+from ncstab.paths.events import (
+    BIFURCATION_COLUMN, CYCLE_COLUMN, INDICATOR_EVENTS, INDICATOR_GAP, SIGN_NOISE, TARGET_COLUMN, TINY, TURNING_COLUMN,
+)
 from ncstab.paths.over_steps import OVER_ALIGNMENT, OVER_MARGIN
 
 rate_form = {rate_form!r}

@@ -36,6 +36,7 @@ if TYPE_CHECKING:
     from ncstab.paths.model import Evaluation
 
 __all__ = [
+    "BIFURCATION_COLUMN",
     "CYCLE_COLUMN",
     "DIAMOND_COLUMNS",
     "INDICATOR_EVENTS",
@@ -56,7 +57,8 @@ class IndicatorLayout:
     Columns, in order: the four built on K (limit point, Hill, controllability,
     flutter), one per unilateral gap (``secondary_contact``), the turning
     point, one per normal contact of a no_tension law (``normal_contact``),
-    the end of a cycle turn and the stage target.
+    the dynamic divergence test and the branch test (``bifurcation``) where the
+    layout has them, the end of a cycle turn and the stage target.
 
     Attributes
     ----------
@@ -66,13 +68,17 @@ class IndicatorLayout:
         Number of normal contacts that can open (no_tension laws).
     general
         Whether the ``divergence`` and ``bifurcation`` columns follow the normal
-        contacts (every system followed as a general model; the seed's reduced
-        diamond keeps the ten columns of its fused kernel).
+        contacts (every system followed as a general model).
+    branch_test
+        Whether a ``bifurcation`` column (the branch test of the path tangent)
+        follows them where ``general`` is False (the seed's reduced diamond:
+        eleven columns).
     """
 
     gaps: int
     normal_contacts: int
     general: bool = False
+    branch_test: bool = False
 
     @property
     def events(self) -> tuple[str, ...]:
@@ -82,7 +88,7 @@ class IndicatorLayout:
             + ("secondary_contact",) * self.gaps
             + ("turning_point",)
             + ("normal_contact",) * self.normal_contacts
-            + (("divergence", "bifurcation") if self.general else ())
+            + self._branch_events
             + ("cycle_end", "stage_target")
         )
 
@@ -92,7 +98,14 @@ class IndicatorLayout:
         gap g is bit 2**g, normal contact j bit 2**(gaps + j)."""
         gaps = tuple(1 << g for g in range(self.gaps))
         normals = tuple(1 << (self.gaps + j) for j in range(self.normal_contacts))
-        return (0, 0, 0, 0) + gaps + (0,) + normals + ((0, 0) if self.general else ()) + (0, 0)
+        return (0, 0, 0, 0) + gaps + (0,) + normals + (0,) * len(self._branch_events) + (0, 0)
+
+    @property
+    def _branch_events(self) -> tuple[str, ...]:
+        """The columns between the normal contacts and the cycle end."""
+        if self.general:
+            return ("divergence", "bifurcation")
+        return ("bifurcation",) if self.branch_test else ()
 
     @property
     def size(self) -> int:
@@ -115,8 +128,8 @@ class IndicatorLayout:
 
     @property
     def bifurcation(self) -> int | None:
-        """Column of the branch test (``None`` for the reduced diamond's layout)."""
-        return self.size - 3 if self.general else None
+        """Column of the branch test (``None`` where the layout has none)."""
+        return self.size - 3 if self.general or self.branch_test else None
 
     @property
     def divergence(self) -> int | None:
@@ -135,7 +148,7 @@ class IndicatorLayout:
 #: The first columns, built on K (limit point, Hill, controllability, flutter).
 STIFFNESS_COLUMNS = 4
 #: The diamond's columns: two gaps (top-bottom, left-right), one normal contact.
-DIAMOND_COLUMNS = IndicatorLayout(gaps=2, normal_contacts=1)
+DIAMOND_COLUMNS = IndicatorLayout(gaps=2, normal_contacts=1, branch_test=True)
 #: Event name of every indicator column of the diamond.
 INDICATOR_EVENTS = DIAMOND_COLUMNS.events
 #: Which contact-state bit a diamond column switches when it crosses zero: 1
@@ -153,6 +166,8 @@ CYCLE_COLUMN = DIAMOND_COLUMNS.cycle
 TURNING_COLUMN = DIAMOND_COLUMNS.turning
 #: Column of the diamond's stage-target indicator.
 TARGET_COLUMN = DIAMOND_COLUMNS.target
+#: Column of the diamond's branch test (a simple bifurcation point where it changes sign).
+BIFURCATION_COLUMN = DIAMOND_COLUMNS.bifurcation
 assert set(IndicatorLayout(1, 1, True).events) - {"normal_contact", "cycle_end", "stage_target"} == set(EVENTS)
 
 
@@ -235,6 +250,8 @@ def indicator_values(
     general = []
     if layout.general:
         general = [dynamic, nothing if branch is None else branch]
+    elif layout.branch_test:
+        general = [nothing if branch is None else branch]
     return np.column_stack(
         [
             *stiffness_values,

@@ -23,7 +23,7 @@ from ncstab.paths.compiled import (
 )
 from ncstab.paths.contacts import ENTRY_NOISE, ENTRY_PROBE
 from ncstab.paths.domain_edge import EDGE_HALVINGS
-from ncstab.paths.events import CYCLE_COLUMN, INDICATOR_EVENTS, INDICATOR_GAP, TARGET_COLUMN
+from ncstab.paths.events import BIFURCATION_COLUMN, CYCLE_COLUMN, INDICATOR_EVENTS, INDICATOR_GAP, TARGET_COLUMN
 
 __all__ = ["cases_part"]
 
@@ -43,6 +43,7 @@ def cases_part(
     Outcome_STEP_SIZE_UNDERFLOW, Outcome_LEFT_DOMAIN = Outcome.STEP_SIZE_UNDERFLOW, Outcome.LEFT_DOMAIN
     Outcome_MAX_STEPS, Outcome_SINGULAR_BRANCH = Outcome.MAX_STEPS, Outcome.SINGULAR_BRANCH
     control_column = INDICATOR_EVENTS.index("controllability_loss")
+    limit_column, bifurcation_column = INDICATOR_EVENTS.index("limit_point"), BIFURCATION_COLUMN
 
     @numba.njit(cache=False, error_model="numpy", nogil=True)
     def run_cases(cases, y, derivative, indicator_table, step_size, arclength, accepted, rejected, located,
@@ -74,9 +75,9 @@ def cases_part(
         coefficients = np.empty((_POWER, M))
         located_states = np.empty((n_columns, M))
         ev = np.empty(17)
-        aux = np.empty(10)
+        aux = np.empty(11)
         ev_new = np.empty(17)
-        aux_new = np.empty(10)
+        aux_new = np.empty(11)
         orient = np.empty(6)  # the orientation, then the reference (the motion at the step's start)
         plain = np.full(6, np.nan)  # the orientation alone (contacts.switch_contacts sets the reference aside)
         values = np.empty(n_columns)
@@ -91,7 +92,7 @@ def cases_part(
         y_end = np.empty(M)
         dy_end = np.empty(M)
         ev_end = np.empty(17)
-        aux_end = np.empty(10)
+        aux_end = np.empty(11)
         y_half = np.empty(M)
         for i in cases:
             fc0, fc1 = force_controlled[i, 0], force_controlled[i, 1]
@@ -245,6 +246,12 @@ def cases_part(
                                 newton_tol, newton_max_iter, event_tol, ev, aux, values, located_states[c],
                             )
                             located[i] += 1
+                        # cut_points.drop_limit_points_at_bifurcations: a zero of det K where the
+                        # branch test changes sign too is a simple bifurcation point
+                        if np.isfinite(sigma[bifurcation_column]) and (
+                            abs(sigma[limit_column] - sigma[bifurcation_column]) <= 1e-6 * span
+                        ):
+                            sigma[limit_column] = np.inf
                         if exact_target:
                             sigma[target_column] = lower[target_column] = upper[target_column] = span
                             for j in range(M):
@@ -387,7 +394,7 @@ def cases_part(
         (stage_entry._estimate_first_steps)."""
         state = np.empty(M)
         ev = np.empty(17)
-        aux = np.empty(10)
+        aux = np.empty(11)
         f1 = np.empty(M)
         orient = np.empty(6)
         for i in cases:

@@ -98,8 +98,8 @@ def model_part(rate_form: bool) -> None:
         # tangent_field._path_tangent_2 with du/dv = I, dF/dv = K, then _continue_reference:
         # orient = (the stage's orientation, the reference: the motion (du, dF, dlambda) at
         # the start of the step, NaN for none); aux = (dv0, dv1, du0, du1, dlam, det_m, dF0,
-        # dF1, |c| the cofactor vector's size, 1.0 where flipped), the tangent flipped where
-        # its motion (du, dF, dlam) reverses the reference
+        # dF1, |c| the cofactor vector's size, 1.0 where flipped, the branch test), the tangent
+        # flipped where its motion (du, dF, dlam) reverses the reference
         k00, k01, k10, k11 = ev[6], ev[7], ev[8], ev[9]
         m00 = k00 if fc0 else 1.0
         m01 = k01 if fc0 else 0.0
@@ -122,6 +122,11 @@ def model_part(rate_form: bool) -> None:
         # finite (a unit motion) and not zero; NaN (no reference) flips nothing
         dot = m0 * orient[1] + m1 * orient[2] + m2 * orient[3] + m3 * orient[4] + m4 * orient[5]
         aux[8] = norm
+        # PathTangent.branch (_continue_reference): the cosine with the reference (1 without
+        # one) times |c|; it changes sign where c passes through zero (events: bifurcation)
+        square = orient[1] * orient[1] + orient[2] * orient[2] + orient[3] * orient[3]
+        product = dot / np.sqrt(square + orient[4] * orient[4] + orient[5] * orient[5])
+        aux[10] = (product if np.isfinite(product) else 1.0) * norm
         if dot < 0:
             aux[0] = -(dv0 * scale)
             aux[1] = -(dv1 * scale)
@@ -238,8 +243,9 @@ def model_part(rate_form: bool) -> None:
         out[5] = signed_gap(ev[13], secondary, 2)
         out[6] = aux[4]
         out[7] = signed_gap(ev[16], secondary, 4)  # a no_tension law's normal overlap (NaN otherwise)
-        out[8] = lam - turn_end  # the end of the current turn (NaN outside a cycle stage)
-        out[9] = target_indicator(lam, lam_end, target_sign)
+        out[8] = aux[10]  # the branch test (NaN where the tangent was not evaluated)
+        out[9] = lam - turn_end  # the end of the current turn (NaN outside a cycle stage)
+        out[10] = target_indicator(lam, lam_end, target_sign)
 
     @njit
     def target_indicator(lam, lam_end, target_sign):

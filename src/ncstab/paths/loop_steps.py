@@ -23,7 +23,7 @@ from ncstab.paths.compiled import (
     _STAGES,
     _terms,
 )
-from ncstab.paths.events import INDICATOR_GAP, TARGET_COLUMN, TURNING_COLUMN
+from ncstab.paths.events import BIFURCATION_COLUMN, INDICATOR_GAP, TARGET_COLUMN, TURNING_COLUMN
 
 __all__ = ["steps_part"]
 
@@ -41,7 +41,8 @@ def steps_part(
     D_TERMS, D_COUNT = _terms(_D, [_EXTENDED] * _D.shape[0])
     B_TERMS, B_COUNT, E5_TERMS, E5_COUNT = B_TERMS[0], B_COUNT[0], E5_TERMS[0], E5_COUNT[0]
     E3_TERMS, E3_COUNT = E3_TERMS[0], E3_COUNT[0]
-    n_columns, target_column, turning_column = _N_COLUMNS, TARGET_COLUMN, TURNING_COLUMN  # noqa: F841 (n_columns: part 3)
+    n_columns, target_column, turning_column = _N_COLUMNS, TARGET_COLUMN, TURNING_COLUMN  # noqa: F841 (n_columns: part 4)
+    bifurcation_column = BIFURCATION_COLUMN
     gap_columns = (INDICATOR_GAP.index(1), INDICATOR_GAP.index(2))  # the two diagonals (ev[12], ev[13])
 
     @hot
@@ -199,11 +200,12 @@ def steps_part(
             project(y, fc0, fc1, ctl, law, p, cos0, sin0, newton_tol, newton_max_iter, ev)
         else:
             evaluate(y[0], y[1], y[3] if N_INT else 0.0, law, p, cos0, sin0, ev)
-        if column == turning_column:
+        if column == turning_column or column == bifurcation_column:
             _, _, g0, g1 = control(y[2], ctl)
             tangent(ev, fc0, fc1, g0, g1, orient, aux)
         else:
             aux[4] = np.nan
+            aux[10] = np.nan
         indicators(ev, aux, y[2], fc0, fc1, lam_end, target_sign, turn_end, secondary, values)
         return values[column]
 
