@@ -124,3 +124,27 @@ def test_the_side_thread_is_another_thread_only_where_two_are_allowed():
         two = pool.submit(where, 21).result()
     assert one == (threading.get_ident(), 42)
     assert two[0] != threading.get_ident() and two[1] == 42
+
+
+def test_the_recorder_grows_the_same_bytes_on_one_thread_and_on_two():
+    """Recorder.reserve copies the stored states and blanks the rest in shares of the case
+    axis on the study's threads where an array is large (PARALLEL_GROWTH_BYTES): the
+    grown arrays are the same, byte for byte, and the same as written by hand."""
+    from ncstab.paths.recorder import PARALLEL_GROWTH_BYTES, Recorder
+
+    rng = np.random.default_rng(3)
+    size = PARALLEL_GROWTH_BYTES // (8 * 2 * 64) + 7  # float64 (size, 64, 2) grows past the threshold
+    grown = []
+    for threads in (1, 2):
+        recorder = Recorder(size)
+        recorder.create({"u": ((2,), np.dtype(float)), "stage": ((), np.dtype(int))})
+        recorder.arrays["u"][:] = rng.normal(size=recorder.arrays["u"].shape) if threads == 1 else grown[0][0][:, :8]
+        recorder.arrays["stage"][:] = 5
+        with using_threads(threads):
+            recorder.reserve(64)
+        assert recorder.arrays["u"].nbytes > PARALLEL_GROWTH_BYTES
+        grown.append((recorder.arrays["u"], recorder.arrays["stage"]))
+    for one, two in zip(*grown):
+        assert one.tobytes() == two.tobytes()
+    u, stage = grown[1]
+    assert np.isnan(u[:, 8:]).all() and (stage[:, 8:] == -1).all() and (stage[:, :8] == 5).all()
