@@ -380,6 +380,17 @@ def test_spectrum_is_batch_independent(rng, n):
         )
 
 
+def test_an_empty_batch_gives_empty_indicators(rng):
+    """No case (a stage that no case enters, as when a preload of 0 is reached at once):
+    every indicator has the batch's shape, (0,), not a scalar NaN (which crashed the
+    event table of a general model with inertia: tests/test_models.py)."""
+    mass, damp, stiffness = random_systems(rng, 3, 3)
+    for function in (flutter_indicator, flutter_onset_indicator, critical_frequency):
+        assert function(mass[:0], None, stiffness[:0]).shape == (0,), function.__name__
+        assert function(mass[0], None, stiffness[:0]).shape == (0,), function.__name__
+        assert function(mass[:0], damp[:0], stiffness[:0]).shape == (0,), function.__name__
+
+
 def test_a_singular_or_non_finite_case_gives_nan_and_spares_the_others(rng):
     mass, damp, stiffness = random_systems(rng, 6, 3)
     clean = dynamic_spectrum(mass, damp, stiffness)

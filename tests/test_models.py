@@ -86,6 +86,25 @@ def test_the_axes_diamond_on_a_symmetric_programme_follows_the_reduced_path(law)
         np.testing.assert_allclose(values, r[name].isel(law=0).values[m - 1], rtol=0, atol=1e-8)
 
 
+def test_a_stage_reached_at_once_does_not_stop_a_system_with_inertia():
+    """A lateral preload of 0 is reached where the first stage starts, so no case enters
+    that stage's stepping (its batch is empty).  The axes diamond has inertia, and its
+    flutter-onset test of an empty batch was a scalar NaN: the event table failed to
+    build and the run ended with a ValueError (before 2026-12-02).  Now it finishes,
+    and D_top = D_bottom (to 1e-12) along the path (symmetric programme)."""
+    programme = [
+        {"hold": {"F_top": 0.0, "F_bottom": 0.0}, "drive": {"F_left": "F2l", "F_right": "F2l"}},
+        {"hold": {"F_left": "current", "F_right": "current"}, "drive": {"D_top": 0.05, "D_bottom": 0.05}},
+    ]
+    ds = follow(SystemSpec("diamond", reduction="axes", secondary_contacts="ignore"), "mcnamara", programme,
+                {"gamma": 2.0, "F2l": 0.0}).to_dataset()
+    assert str(ds["status"].item()) == "finished"
+    n = int(ds["n_steps"].item())
+    u = ds["u"].isel(law=0).values[:n]
+    np.testing.assert_allclose(u[:, 0], u[:, 1], rtol=0, atol=1e-12)
+    assert u[-1, 0] == pytest.approx(0.05, abs=1e-12)
+
+
 @pytest.mark.parametrize("law", ["mcnamara", "cundall_strack"])
 def test_a_ring_of_four_grains_is_the_axes_diamond_at_alpha0_pi_over_4(law):
     """ring(4): grains 1-4 at the top, right, bottom and left: the same mechanics as the

@@ -241,7 +241,8 @@ def flutter_onset_indicator(
     """
     mass, damping, stiffness = as_dynamic_matrices(mass, damping, stiffness)
     undamped = _undamped(damping, mass.shape[:-2])
-    discriminant = frequency_discriminant(mass, stiffness) if undamped.any() else np.nan
+    # (an array, of the batch's shape, even for an empty batch: a stage entered by no case)
+    discriminant = frequency_discriminant(mass, stiffness) if undamped.any() else np.full(undamped.shape, np.nan)
     if damping is None:
         return discriminant
     n = mass.shape[-1]
