@@ -45,8 +45,8 @@ threads (the loop releases the GIL; :mod:`ncstab.paths.compiled_stages`).
 The loop's text is a template in four parts, :mod:`ncstab.paths.loop_model`
 (the model at a state, the tangent, the indicators),
 :mod:`ncstab.paths.loop_steps` (a DOP853 step, the projection, event
-location, stored states), :mod:`ncstab.paths.loop_over_steps` (the over step
-across a simple bifurcation point) and :mod:`ncstab.paths.loop_cases` (each case
+location, stored states), :mod:`ncstab.paths.loop_step_limits` (the domain's
+edge, and the over step across a simple bifurcation point) and :mod:`ncstab.paths.loop_cases` (each case
 through its stage); :mod:`ncstab.paths.compiled_source` pastes them into
 one module, writes it to the cache and imports it.
 """

@@ -55,7 +55,7 @@ def kernel_body(kernel: Callable[..., list]) -> str:
 def loop_source(rate_form: bool) -> str:
     """The stage loop of every law of one form as the text of a module: the bodies of
     the four template parts (:mod:`ncstab.paths.loop_model`, :mod:`~ncstab.paths.loop_steps`,
-    :mod:`~ncstab.paths.loop_over_steps`, :mod:`~ncstab.paths.loop_cases`) one after the other.
+    :mod:`~ncstab.paths.loop_step_limits`, :mod:`~ncstab.paths.loop_cases`) one after the other.
 
     A module on disk, not closures: numba caches the machine code of a file's
     functions next to it, so the loop compiles once per form and machine, not
@@ -63,9 +63,9 @@ def loop_source(rate_form: bool) -> str:
     first-class function of :data:`ncstab.paths.compiled.LAW_SIGNATURE`), so a new law compiles its
     kernel only.
     """
-    from ncstab.paths import loop_cases, loop_model, loop_over_steps, loop_steps
+    from ncstab.paths import loop_cases, loop_model, loop_step_limits, loop_steps
 
-    parts = (loop_model.model_part, loop_steps.steps_part, loop_over_steps.over_part, loop_cases.cases_part)
+    parts = (loop_model.model_part, loop_steps.steps_part, loop_step_limits.limits_part, loop_cases.cases_part)
     body = "\n".join(template_body(part) for part in parts)
     body = body.replace("cache=False", "cache=True").replace("return StageLoop(run_cases, start)", "LOOP = StageLoop(run_cases, start)")
     header = f'''"""The compiled stage loop of the laws {"with" if rate_form else "without"} a rate form,

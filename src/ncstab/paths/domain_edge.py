@@ -15,8 +15,8 @@ Hill's condition, 6e-3 in arclength before alpha reached pi/2, with steps of
 0.01 to 0.05 (``tests/test_domain_edge.py``).  Where no admissible state lies beyond the piece's start
 the case fails there, as before.
 
-The compiled stepper does the same in its loop (``admissible_at`` in
-:mod:`ncstab.paths.loop_steps`, the bisection in :mod:`ncstab.paths.loop_cases`):
+The compiled stepper does the same in its loop (``admissible_at`` and the
+bisection, ``last_admissible``, in :mod:`ncstab.paths.loop_step_limits`):
 the same midpoints, the same test of each, the same number of halvings.
 """
 

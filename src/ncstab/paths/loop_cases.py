@@ -22,28 +22,26 @@ from ncstab.paths.compiled import (
     StageLoop,
 )
 from ncstab.paths.contacts import ENTRY_NOISE, ENTRY_PROBE
-from ncstab.paths.domain_edge import EDGE_HALVINGS
-from ncstab.paths.events import BIFURCATION_COLUMN, CYCLE_COLUMN, INDICATOR_EVENTS, INDICATOR_GAP, TARGET_COLUMN
+from ncstab.paths.events import CYCLE_COLUMN, INDICATOR_EVENTS, INDICATOR_GAP, TARGET_COLUMN
 
 __all__ = ["cases_part"]
 
 
 def cases_part(
     rate_form, M, admissible_at, angle, branch_size, dense_coefficients, dense_value, domain_detail, dop853,
-    indicators, initial_step_size, locate, motion, motion_product, n_columns, next_over_length, njit, over_step,
-    piece_count, project, rhs, sign, state_slot, store_event, store_record, target_column,
+    drop_limit_at_bifurcation, first_column, indicators, initial_step_size, last_admissible, locate, motion,
+    motion_product, n_columns, next_over_length, njit, over_step, piece_count, project, rhs, sign, state_slot,
+    store_event, store_record, target_column,
 ) -> StageLoop:
     """Define ``run_cases`` and ``start`` and return them (a template: see the module docstring)."""
     cycle_column = CYCLE_COLUMN
     entry_probe, entry_noise = ENTRY_PROBE, ENTRY_NOISE
-    edge_halvings = EDGE_HALVINGS
     cut_always = np.array([c in (TARGET_COLUMN, CYCLE_COLUMN) or BREAK_ALWAYS[c] for c in range(_N_COLUMNS)])
     switch_bits = np.array(INDICATOR_GAP, dtype=np.int64)
     Outcome_PAUSED, Outcome_TARGET, Outcome_STOPPED = Outcome.PAUSED, Outcome.TARGET, Outcome.STOPPED
     Outcome_STEP_SIZE_UNDERFLOW, Outcome_LEFT_DOMAIN = Outcome.STEP_SIZE_UNDERFLOW, Outcome.LEFT_DOMAIN
     Outcome_MAX_STEPS, Outcome_SINGULAR_BRANCH = Outcome.MAX_STEPS, Outcome.SINGULAR_BRANCH
     control_column = INDICATOR_EVENTS.index("controllability_loss")
-    limit_column, bifurcation_column = INDICATOR_EVENTS.index("limit_point"), BIFURCATION_COLUMN
 
     @numba.njit(cache=False, error_model="numpy", nogil=True)
     def run_cases(cases, y, derivative, indicator_table, step_size, arclength, accepted, rejected, located,
@@ -198,16 +196,8 @@ def cases_part(
                             dense_coefficients(y0, y_raw, h, fc0, fc1, ctl, orient, law, p, c0, s0, stages,
                                                coefficients, work, ev, aux)
                             have_dense = True
-                        lo, hi = offset, end_at
-                        for _ in range(edge_halvings):
-                            if not (hi - lo > event_tol):
-                                break
-                            mid = 0.5 * (lo + hi)
-                            if admissible_at(mid, h, y0, coefficients, fc0, fc1, ctl, orient, law, p, c0, s0,
-                                             newton_tol, newton_max_iter, work[0], work[1], ev, aux):
-                                lo = mid
-                            else:
-                                hi = mid
+                        lo = last_admissible(offset, end_at, h, y0, coefficients, fc0, fc1, ctl, orient, law, p, c0,
+                                             s0, newton_tol, newton_max_iter, event_tol, work, ev, aux)
                         if not (lo > offset):  # nothing admissible beyond the piece's start
                             code[i], detail[i], ended = Outcome_LEFT_DOMAIN, reason, True
                             break
@@ -246,12 +236,7 @@ def cases_part(
                                 newton_tol, newton_max_iter, event_tol, ev, aux, values, located_states[c],
                             )
                             located[i] += 1
-                        # cut_points.drop_limit_points_at_bifurcations: a zero of det K where the
-                        # branch test changes sign too is a simple bifurcation point
-                        if np.isfinite(sigma[bifurcation_column]) and (
-                            abs(sigma[limit_column] - sigma[bifurcation_column]) <= 1e-6 * span
-                        ):
-                            sigma[limit_column] = np.inf
+                        drop_limit_at_bifurcation(sigma, span)
                         if exact_target:
                             sigma[target_column] = lower[target_column] = upper[target_column] = span
                             for j in range(M):
@@ -267,22 +252,13 @@ def cases_part(
                     is_cut = np.isfinite(cut_sigma)
                     reach = cut_sigma if is_cut else span
                     switched = False
-                    # _store_first_events
-                    for e in range(event_columns.shape[0]):
-                        best = np.inf
-                        best_column = -1
-                        for k in range(event_columns.shape[1]):
-                            c = event_columns[e, k]
-                            if c >= 0 and (best_column < 0 or sigma[c] < best):
-                                best = sigma[c]
-                                best_column = c
-                        if np.isfinite(best) and best <= reach + event_tol and not event_found[e, i]:
-                            state = located_states[best_column]
-                            rhs(state, fc0, fc1, ctl, orient, law, p, c0, s0, work[2], ev, aux)
-                            event_found[e, i] = True
-                            event_stage[e, i] = stage_number
-                            store_event(event_values[e, i], arclength[i], sigma[best_column], lower[best_column],
-                                        upper[best_column], state, ev)
+                    for e in range(event_columns.shape[0]):  # _store_first_events
+                        c = first_column(event_columns[e], sigma)
+                        if c >= 0 and np.isfinite(sigma[c]) and sigma[c] <= reach + event_tol and not event_found[e, i]:
+                            rhs(located_states[c], fc0, fc1, ctl, orient, law, p, c0, s0, work[2], ev, aux)
+                            event_found[e, i], event_stage[e, i] = True, stage_number
+                            store_event(event_values[e, i], arclength[i], sigma[c], lower[c], upper[c], located_states[c],
+                                        ev)
                     if is_cut:  # cut_points.move_to_cut_points
                         for j in range(M):
                             y_end[j] = located_states[cut_column, j]

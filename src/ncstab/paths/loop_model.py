@@ -2,7 +2,7 @@
 
 The body of :func:`model_part` is pasted, with the bodies of
 :func:`ncstab.paths.loop_steps.steps_part`,
-:func:`ncstab.paths.loop_over_steps.over_part` and
+:func:`ncstab.paths.loop_step_limits.limits_part` and
 :func:`ncstab.paths.loop_cases.cases_part` after it, into one generated module
 per form of law (:func:`ncstab.paths.compiled_source.loop_source`), which
 numba compiles and caches; the function itself is never called.  This part

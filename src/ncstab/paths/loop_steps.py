@@ -23,7 +23,13 @@ from ncstab.paths.compiled import (
     _STAGES,
     _terms,
 )
-from ncstab.paths.events import BIFURCATION_COLUMN, INDICATOR_GAP, TARGET_COLUMN, TURNING_COLUMN
+from ncstab.paths.events import (
+    BIFURCATION_COLUMN,
+    INDICATOR_EVENTS,
+    INDICATOR_GAP,
+    TARGET_COLUMN,
+    TURNING_COLUMN,
+)
 
 __all__ = ["steps_part"]
 
@@ -42,7 +48,7 @@ def steps_part(
     B_TERMS, B_COUNT, E5_TERMS, E5_COUNT = B_TERMS[0], B_COUNT[0], E5_TERMS[0], E5_COUNT[0]
     E3_TERMS, E3_COUNT = E3_TERMS[0], E3_COUNT[0]
     n_columns, target_column, turning_column = _N_COLUMNS, TARGET_COLUMN, TURNING_COLUMN  # noqa: F841 (n_columns: part 4)
-    bifurcation_column = BIFURCATION_COLUMN
+    bifurcation_column, limit_column = BIFURCATION_COLUMN, INDICATOR_EVENTS.index("limit_point")
     gap_columns = (INDICATOR_GAP.index(1), INDICATOR_GAP.index(2))  # the two diagonals (ev[12], ev[13])
 
     @hot
@@ -307,31 +313,20 @@ def steps_part(
         row[15] = ev[9]
 
     @njit
-    def domain_detail(state, ev_state):
-        # domain_edge.domain_codes, one state: -1 inside the domain, else the index of the reason
-        # in model.DOMAIN_REASONS (0 non-finite numbers, 1 l* <= 0, 2 |alpha| >= pi/2)
-        finite = np.isfinite(ev_state[4]) and np.isfinite(ev_state[5])
-        for j in range(M):
-            finite = finite and np.isfinite(state[j])
-        if not finite:
-            return 0
-        if not (ev_state[0] > 0):
-            return 1
-        if not (abs(angle(ev_state)) < 0.5 * np.pi):
-            return 2
-        return -1
+    def first_column(columns, sigma):
+        # crossings.store_first_events: of an event's columns (-1: none), the one crossed first
+        best, best_column = np.inf, -1
+        for c in columns:
+            if c >= 0 and (best_column < 0 or sigma[c] < best):
+                best, best_column = sigma[c], c
+        return best_column
 
     @njit
-    def admissible_at(sigma, h, y0, coefficients, fc0, fc1, ctl, orient, law, p, c0, s0, newton_tol,
-                      newton_max_iter, state, dy, ev, aux):
-        # domain_edge._admissible_at, one case: the state at sigma along its step (projected for a
-        # total form) into state, with dy/ds, ev and aux there; whether it is admissible
-        dense_value(y0, coefficients, sigma / h, state)
-        admissible = True
-        if not rate_form:
-            admissible = project(state, fc0, fc1, ctl, law, p, c0, s0, newton_tol, newton_max_iter, ev)
-        rhs(state, fc0, fc1, ctl, orient, law, p, c0, s0, dy, ev, aux)
-        return admissible and domain_detail(state, ev) < 0
+    def drop_limit_at_bifurcation(sigma, span):
+        # cut_points.drop_limit_points_at_bifurcations: a zero of det K where the branch test
+        # changes sign too (within 1e-6 of the piece) is a simple bifurcation point
+        if np.isfinite(sigma[bifurcation_column]) and abs(sigma[limit_column] - sigma[bifurcation_column]) <= 1e-6 * span:
+            sigma[limit_column] = np.inf
 
     @njit
     def piece_count(h, sample_step, max_pieces):
