@@ -39,7 +39,7 @@ for laws with a total form:
 
 Rate laws (no total form) are integrated as before: no projection brings a
 predicted state back onto their path.  The compiled stepper does the same in
-its loop (:mod:`ncstab.paths.loop_cases`).
+its loop (:mod:`ncstab.paths.loop_step_limits`, called from :mod:`ncstab.paths.loop_cases`).
 """
 
 from __future__ import annotations
