@@ -72,7 +72,6 @@ def limits_part(M, N_INT, alignment, angle, dense_value, evaluate, njit, project
                 hi = mid
         return lo
 
-
     @njit
     def next_over_length(size_before, size_after, reach, newton_tol):
         # over_steps.next_over_steps, one case: the length of the over step tried next (0: none)

@@ -15,13 +15,13 @@ incoming tangent past the point, then a corrector).  The engine does the same
 for laws with a total form:
 
 * after each committed step (or piece) of length ``h``, the size of the
-  branch test ``b = |c| cos(c, reference)`` (:class:`PathTangent.branch`) at
+  branch test ``b = |c| |cos(c, reference)|`` (:class:`PathTangent.branch`) at
   its start, ``b0``, and end, ``b1``, extrapolate linearly to a zero at
-  ``d = h b1 / (b0 - b1)`` ahead; where ``0 < d <= 2 h`` (``b`` fell by a
-  third or more in one step) the next step is an **over step** of length
-  ``2 d`` (at most ``max_step``), predicted to land as far past the zero as the
-  path now is before it;
-* the over step is the linear predictor ``y0 + 2 d dy/ds`` projected onto
+  ``d = h b1 / (b0 - b1)`` ahead; where ``0 < d <= OVER_MARGIN sqrt(newton_tol)``
+  (1e-4 by default: well above the ~sqrt(newton_tol) within which rounding
+  decides the branch) the next step is an **over step** of length ``L = 2 d``,
+  predicted to land as far past the zero as the path now is before it;
+* the over step is the linear predictor ``y0 + L dy/ds`` projected onto
   equilibrium (the stage's Newton projection).  It is kept only if it
   crossed a simple bifurcation point: the projection converged, the
   cofactor vector at its end is reversed (the tangent there was flipped to
@@ -30,12 +30,13 @@ for laws with a total form:
   one it left (its cosine above 0.9: the branch followed, not the crossing
   one).  Otherwise nothing is kept (no state, no counter) and a regular
   DOP853 step is taken from the same state;
-* a kept over step is completed like any step: in pieces of ``sample_step``,
-  its indicators' sign changes located to ``event_tol``, on its linear
-  interpolant projected onto equilibrium (the states between its ends are
-  equilibria, the predictor's chord projected).  Its arclength is the
-  predictor's length, ``2 d``: the arc differs from the chord by
-  ``kappa^2 (2d)^3 / 24`` for a branch of curvature ``kappa``.
+* a kept over step's arclength is that of the projected arc through its
+  start, middle and end (:func:`arc_length`, exact to O(kappa^4 L^5)); its
+  states in between are the predictor's points ``y0 + sigma(f) dy/ds``
+  projected onto equilibrium (:func:`over_interpolant`, arclength proportional
+  to f to O(kappa^2 L^3)).  It is then completed like any step: in pieces of
+  ``sample_step``, its indicators' sign changes located to ``event_tol`` on
+  that interpolant, cut, stored and counted.
 
 Rate laws (no total form) are integrated as before: no projection brings a
 predicted state back onto their path.  The compiled stepper does the same in
