@@ -44,6 +44,7 @@ from fault_helpers import (
 import ncstab.studies.chunked as chunked_module
 from ncstab.studies import open_study, parse_study, run_study, write_dataset
 from ncstab.studies import preflight as preflight_module
+from ncstab.studies.errors import ArchiveError
 from ncstab.studies.locks import OutputLock, lock_path
 
 
@@ -424,7 +425,9 @@ def test_an_archive_that_is_not_readable_exits_2_saying_why(
 ):
     path = spoil(copy_archive(archive, tmp_path))
     before = tree(tmp_path)
-    code, out, err = run_cli([command, path], capfd)
+    # plot reads what its figures show (the archive's study draws none by default): u and stage
+    kinds = ["--kinds", "load_displacement"] if command == "plot" else []
+    code, out, err = run_cli([command, path, *kinds], capfd)
     assert code == 2, err
     assert_one_line(err, rf"^ncstab {command}: {path} is not a readable ncstab archive: ({reason})")
     assert out == "" and tree(tmp_path) == before, "no figure and no file is written"
@@ -437,6 +440,17 @@ def test_the_good_archive_passes_info_and_plot(archive, tmp_path, capfd):
     assert (code, err) == (0, "") and "finished: 4" in out
     code, out, err = run_cli(["plot", path, "--kinds", "load_displacement"], capfd)
     assert (code, err) == (0, "") and tree(tmp_path) == {"archive.nc", "archive_load_displacement.png"}
+
+
+def test_plot_reads_only_what_its_figures_show(archive, tmp_path, capfd):
+    """``ncstab plot`` opens the archive lazily: a damaged chunk of a variable no figure
+    shows (the work) does not stop the figures, and the full read still names it."""
+    path = copy_archive(archive, tmp_path)
+    flip_byte(path, chunk_offset(path, "work"))
+    code, out, err = run_cli(["plot", path, "--kinds", "load_displacement"], capfd)
+    assert (code, err) == (0, "") and (tmp_path / "archive_load_displacement.png").exists()
+    with pytest.raises(ArchiveError, match="variable 'work' cannot be read"):
+        open_study(path)
 
 
 # --- outputs that cannot be written ---------------------------------------------------------------

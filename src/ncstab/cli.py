@@ -74,37 +74,54 @@ def command_laws(args: argparse.Namespace) -> int:
     return 0
 
 
-def _open_archive(archive: str):
-    """The archive's Dataset, verified (:func:`ncstab.studies.open_study`)."""
-    from ncstab.studies import open_study
+def _existing_archive(archive: str) -> Path:
+    """The archive's path; InvalidInputError (exit 2) where there is no such file."""
     from ncstab.studies.errors import InvalidInputError
 
     path = Path(archive)
     if not path.exists():
         raise InvalidInputError(f"no such archive: {path}")
-    return open_study(path)
+    return path
 
 
 def command_plot(args: argparse.Namespace) -> int:
-    """Redraw the figures of an archive from the archive alone."""
-    from ncstab.plotting import draw_figures
-    from ncstab.studies.errors import InvalidInputError, WriteError, write_error
+    """Redraw the figures of an archive from the archive alone.
+
+    The archive is opened lazily (:func:`ncstab.studies.open_study_lazily`:
+    its invariants and the digests of its small variables checked on opening,
+    HDF5's checksum of each chunk as the figures read it), so only what the
+    figures show is read.  Every figure is built before any is written; where
+    building fails, the whole archive is read and verified
+    (:func:`ncstab.studies.open_study`) to say which variable cannot be read.
+    """
+    from ncstab.plotting import draw_figures, figure_kinds
+    from ncstab.studies import open_study, open_study_lazily
+    from ncstab.studies.errors import ArchiveError, InvalidInputError, WriteError, write_error
 
     from ncstab.dask_probe import defer_dask_array_import
     from ncstab.heap import settle
 
     defer_dask_array_import()  # xarray's probe for dask arrays without importing dask.array (0.8 s)
-    path = Path(args.archive)
-    dataset = _open_archive(args.archive)
-    settle()  # the imports' objects out of the collector's scans while drawing (ncstab.heap)
+    path = _existing_archive(args.archive)
     kinds = args.kinds.split(",") if args.kinds else None
     directory = Path(args.directory) if args.directory else path.parent
     try:
-        figures = draw_figures(dataset, directory, kinds=kinds, stem=path.stem)
-    except ValueError as error:
-        raise InvalidInputError(f"{path}: cannot draw the figures: {error}") from None
-    except OSError as error:
-        raise (write_error(error, directory) or WriteError(f"could not write the figures: {error}")) from error
+        with open_study_lazily(path) as dataset:
+            try:
+                figure_kinds(dataset, kinds)
+            except ValueError as error:  # an unknown kind, said before anything is read
+                raise InvalidInputError(f"{path}: cannot draw the figures: {error}") from None
+            settle()  # the imports' objects out of the collector's scans while drawing (ncstab.heap)
+            figures = draw_figures(dataset, directory, kinds=kinds, stem=path.stem)
+    except (ArchiveError, InvalidInputError):
+        raise
+    except Exception as error:
+        open_study(path)  # a variable that cannot be read: ArchiveError naming it
+        if isinstance(error, ValueError):
+            raise InvalidInputError(f"{path}: cannot draw the figures: {error}") from None
+        if isinstance(error, OSError):
+            raise (write_error(error, directory) or WriteError(f"could not write the figures: {error}")) from error
+        raise
     for figure in figures:
         print(figure)
     return 0

@@ -8,7 +8,7 @@
   optional per-figure progress callback.
 """
 
-from ncstab.plotting.draw import FigureProgress, draw_figures
+from ncstab.plotting.draw import FigureProgress, draw_figures, figure_kinds
 from ncstab.plotting.figures import (
     FIGURE_KINDS,
     plot_load_displacement,
@@ -24,6 +24,7 @@ __all__ = [
     "FigureProgress",
     "SweepShape",
     "draw_figures",
+    "figure_kinds",
     "plot_load_displacement",
     "plot_load_displacement_rotation",
     "plot_load_rotation",

@@ -132,8 +132,10 @@ def draw_figures(
 
     Notes
     -----
-    Each file is written to a temporary name in ``directory`` and renamed,
-    so a reader never sees half a PNG.  Figures are not pyplot figures: no
+    Every figure is built (the data it shows read from the Dataset) before
+    the first is rendered, so a Dataset read lazily whose data cannot be read
+    raises before any file is written.  Each file is written to a temporary
+    name in ``directory`` and renamed, so a reader never sees half a PNG.  Figures are not pyplot figures: no
     window opens and nothing stays registered once the call returns.
     """
     names = figure_kinds(dataset, kinds)
@@ -142,15 +144,17 @@ def draw_figures(
     directory.mkdir(parents=True, exist_ok=True)
     written: list[Path] = []
     with _ticks(progress, len(names)) as tick:
-        for name in names:
-            written.append(_draw_one(dataset, name, directory / f"{stem}_{name}.png", dpi))
+        # Every figure is built (its data read) before any is written: an archive read
+        # lazily that cannot be read leaves no file behind (ncstab plot).
+        figures = [FIGURE_KINDS[name](dataset) for name in names]
+        for name, figure in zip(names, figures):
+            written.append(_write_one(figure, directory / f"{stem}_{name}.png", dpi))
             tick(len(written), len(names), written[-1])
     return written
 
 
-def _draw_one(dataset: xr.Dataset, name: str, target: Path, dpi: int) -> Path:
-    """Draw one kind and write it to ``target`` atomically."""
-    figure = FIGURE_KINDS[name](dataset)
+def _write_one(figure: Figure, target: Path, dpi: int) -> Path:
+    """Render one figure and write it to ``target`` atomically."""
     # A fresh name in the same directory (so os.replace is atomic), opened
     # exclusively, with the permissions the umask gives any new file.
     temporary = target.parent / f".{target.name}.{os.getpid()}.{uuid.uuid4().hex[:12]}.tmp"
@@ -183,7 +187,8 @@ def _ticks(progress: FigureProgress | bool | None, total: int) -> Iterator[Figur
     elif progress:
         from tqdm.auto import tqdm
 
-        with tqdm(total=total, unit="figure", desc="figures", leave=False) as bar:
+        # every figure shown (a few updates, seconds apart or not)
+        with tqdm(total=total, unit="figure", desc="figures", leave=False, mininterval=0, miniters=1) as bar:
             yield lambda done, total, path: bar.update(1)
     else:
         yield lambda done, total, path: None
