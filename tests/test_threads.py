@@ -24,7 +24,7 @@ PRELOAD = [
     {"hold": {"F2": "current"}, "drive": {"D1": 0.6}, "stop_at": ["limit_point"]},
 ]
 #: 96 cases with limit points, Hill losses and stops, unevenly costly, so that
-#: the strided share of the cases gives each thread a different mix.
+#: the shares of the cases (blocks of SHARE_BLOCK dealt in turn) give each thread a different mix.
 GRID = {"gamma": np.linspace(0.1, 2.0, 8), "alpha0": np.pi / 4, "F2_lateral": np.linspace(0.0, 0.6, 12)}
 
 
@@ -58,7 +58,8 @@ def test_using_threads_restores_the_count():
 
 @pytest.mark.skipif(thread_limit() < 2, reason="numba runs one thread here (NUMBA_NUM_THREADS or one core)")
 def test_two_threads_run_the_loop_side_by_side_and_one_thread_runs_it_inline(monkeypatch):
-    """The count reaches the pool: two threads submit two strided shares, one thread none."""
+    """The count reaches the pool: two threads submit two shares, blocks of SHARE_BLOCK
+    consecutive cases dealt in turn; one thread none, nor fewer cases than one block."""
     pools = []
 
     class Recording(compiled_stages.ThreadPoolExecutor):
@@ -73,15 +74,19 @@ def test_two_threads_run_the_loop_side_by_side_and_one_thread_runs_it_inline(mon
 
     monkeypatch.setattr(compiled_stages, "ThreadPoolExecutor", Recording)
     grid = {"gamma": np.linspace(0.5, 1.5, 5), "alpha0": np.pi / 4}
+    programme = [{"hold": {"F2": 0.0}, "drive": {"D1": 0.1}}]
     with using_threads(1):
-        follow(IGNORE, ["cundall_strack"], [{"hold": {"F2": 0.0}, "drive": {"D1": 0.1}}], grid, PathOptions())
-    assert pools == []
+        follow(IGNORE, ["cundall_strack"], programme, grid, PathOptions())
+    with using_threads(2):  # 5 cases, fewer than a block of the default SHARE_BLOCK = 64: one share
+        follow(IGNORE, ["cundall_strack"], programme, grid, PathOptions())
+    assert compiled_stages.SHARE_BLOCK == 64 and pools == []
+    monkeypatch.setattr(compiled_stages, "SHARE_BLOCK", 2)
     with using_threads(2):
-        follow(IGNORE, ["cundall_strack"], [{"hold": {"F2": 0.0}, "drive": {"D1": 0.1}}], grid, PathOptions())
+        follow(IGNORE, ["cundall_strack"], programme, grid, PathOptions())
     workers, shares = pools[0]
     assert workers == 2
-    np.testing.assert_array_equal(shares[0], [0, 2, 4])
-    np.testing.assert_array_equal(shares[1], [1, 3])
+    np.testing.assert_array_equal(shares[0], [0, 1, 4])
+    np.testing.assert_array_equal(shares[1], [2, 3])
 
 
 @pytest.mark.parametrize("count", [0, -2, 1.5, True])

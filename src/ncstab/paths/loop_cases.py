@@ -61,7 +61,7 @@ def cases_part(
         first events, the commit and the end of the stage.  A case reads and
         writes its own rows only, so cases may run on any thread in any order
         (the loop releases the GIL: :mod:`ncstab.paths.compiled_stages` runs
-        strided shares of the cases on Python threads side by side).
+        shares of the cases on Python threads side by side).
         """
         capacity = recorded[0].shape[1]
         stages = np.empty((_EXTENDED, M))
