@@ -252,3 +252,38 @@ def test_turco_gamma_2_switches_onto_the_branch_of_neutral_equilibria(direction,
     assert abs(u_end[1] - 0.405) > 0.1  # not the branch followed before the point
     np.testing.assert_allclose(ds["u"].values[n - 1], u_end, rtol=0, atol=1e-10)
     np.testing.assert_allclose(ds["F"].values[n - 1], F_end, rtol=0, atol=1e-10)
+
+
+# --- The unreduced diamond at the same point: a degenerate point (K's null space 2-D) ---
+
+AXES_PROGRAMME = [
+    {"hold": {"F_top": 0.0, "F_bottom": 0.0}, "drive": {"F_left": "F2l", "F_right": "F2l"}},
+    {"hold": {"F_left": "current", "F_right": "current"}, "drive": {"D_top": 0.6, "D_bottom": 0.6}},
+]
+
+
+@pytest.mark.parametrize("max_step", [1.0, 0.05])
+def test_the_unreduced_diamond_steps_over_turcos_degenerate_point_along_its_branch(max_step):
+    """The 4-dof diamond (reduction = "axes") under the same symmetric programme meets
+    Turco's point with K singular in both its symmetric and antisymmetric blocks: [M | g']
+    loses rank by two, the cofactor vector vanishes quadratically without reversing, and
+    before degenerate over steps (ncstab.paths.over_steps) max_step 1 turned onto the
+    neutral branch (D_left* = D_right* = 0.548 at the end, with a `limit_point` found in
+    the rounding of det K = 0 on it) while 0.05 went straight on.
+
+    Expected: every step size ends at the closed-form equilibrium of the branch followed
+    (the reduced diamond's, tests/turco_bifurcation.py: D2* = 0.40522161 at D1* = 0.6, F2 =
+    0; by symmetry D_top = D_bottom = D1*, D_left = D_right = D2*, F_top = F_bottom = F1),
+    to 1e-10 (projected onto equilibrium to newton_tol = 1e-12, |K^-1| < 1 there), and
+    no limit point is found."""
+    path = follow(
+        SystemSpec("diamond", reduction="axes", secondary_contacts="ignore"), "turco", AXES_PROGRAMME,
+        {"gamma": 2.0, "F2l": 0.0, "alpha0": np.pi / 4}, PathOptions(max_step=max_step),
+    )
+    ds = path.to_dataset().squeeze()
+    assert str(ds["status"].item()) == "finished"
+    u_end, F_end = turco_bifurcation.equilibrium(0.6, 0.40)
+    last = int(ds["n_steps"]) - 1
+    np.testing.assert_allclose(ds["u"].values[last], [u_end[0], u_end[0], u_end[1], u_end[1]], rtol=0, atol=1e-10)
+    np.testing.assert_allclose(ds["F"].values[last], [F_end[0], F_end[0], 0.0, 0.0], rtol=0, atol=1e-10)
+    assert np.isnan(float(ds["limit_point_s"]))

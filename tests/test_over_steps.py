@@ -9,7 +9,13 @@ import numpy as np
 import pytest
 
 from ncstab.paths.integrator import evaluate_dense
-from ncstab.paths.over_steps import arc_length, next_over_steps, over_distance, over_interpolant
+from ncstab.paths.over_steps import (
+    arc_length,
+    next_degenerate_steps,
+    next_over_steps,
+    over_distance,
+    over_interpolant,
+)
 
 
 def test_the_next_over_step_reaches_as_far_past_the_extrapolated_zero_as_the_path_is_before_it():
@@ -25,6 +31,24 @@ def test_the_next_over_step_reaches_as_far_past_the_extrapolated_zero_as_the_pat
     np.testing.assert_allclose(lengths[0], 2 * d, rtol=1e-15)
     # 1e-3 ahead (too far), rising, exactly zero (no extrapolation), unknown, no length
     np.testing.assert_array_equal(lengths[1:], 0.0)
+
+
+@pytest.mark.parametrize("distance", [3e-6, 2.6e-5, 3.7e-4])
+def test_the_degenerate_over_step_reaches_as_far_past_a_quadratic_zero_as_the_path_is_before_it(distance):
+    """A branch test of size k d^2 (a degenerate point, d its distance ahead; k = 23 as on
+    the unreduced diamond at Turco's point) seen at d + h and d: sqrt of it extrapolates to
+    the zero exactly, so the degenerate over step is 2 d (to rounding, 1e-12 relative);
+    the linear extrapolation of next_over_steps falls short of it (d^2 / (2 d + h))."""
+    k, h = 23.0, 2e-3
+    before, after = np.array([k * (distance + h) ** 2]), np.array([k * distance**2])
+    np.testing.assert_allclose(next_degenerate_steps(before, after, np.array([h])), 2 * distance, rtol=1e-12)
+    linear = h * after / (before - after)
+    np.testing.assert_allclose(linear, distance**2 / (2 * distance + h), rtol=1e-12)
+    assert linear[0] < 0.5 * distance
+    # rising, zero, unknown, no length: none
+    lengths = next_degenerate_steps(np.array([1.0, 1.0, np.nan, 1.0]), np.array([2.0, 0.0, 0.5, 0.5]),
+                                    np.array([h, h, h, 0.0]))
+    np.testing.assert_array_equal(lengths, 0.0)
 
 
 @pytest.mark.parametrize("angle", [1e-2, 5e-2, 1e-1])

@@ -38,6 +38,22 @@ for laws with a total form:
   ``sample_step``, its indicators' sign changes located to ``event_tol`` on
   that interpolant, cut, stored and counted.
 
+**Degenerate points** (systems of three dofs or more).  Where ``[M | g']``
+loses rank by two (K with a two-dimensional null space in the force-controlled
+directions: the unreduced diamond at Turco's point, gamma = 2, F2* = 0) the
+cofactor vector vanishes quadratically, ``|c| ~ k d^2``, without reversing,
+several branches cross, and the same saddle of the normalised field sends the
+path onto one of them or another depending on the steps.  There the over step
+of the linear extrapolation lands short (``b1 / (b0 - b1)`` underestimates the
+distance to a quadratic zero) or, landing past, finds no reversal, and is not
+kept.  Where it converged and stayed aligned, the case tries next a
+**degenerate over step** of twice the distance extrapolated from ``sqrt(b)``
+(:func:`next_degenerate_steps`, exact for a quadratic zero), kept where it
+converged, stayed within ``OVER_ALIGNMENT`` of the tangent it left and did
+*not* reverse the cofactor vector.  A 2-dof system cannot have such a point
+under a drive (its ``2 x 3`` matrix would vanish, ``g'`` with it), so this
+applies from three dofs on, to the numpy stepper, which runs those systems.
+
 Rate laws (no total form) are integrated as before: no projection brings a
 predicted state back onto their path.  The compiled stepper does the same in
 its loop (:mod:`ncstab.paths.loop_step_limits`, called from :mod:`ncstab.paths.loop_cases`).
@@ -57,7 +73,10 @@ from ncstab.paths.rhs import state_derivative
 if TYPE_CHECKING:  # pragma: no cover
     from ncstab.paths.stepper import BatchStepper
 
-__all__ = ["OVER_ALIGNMENT", "OVER_MARGIN", "arc_length", "next_over_steps", "over_distance", "take_over_steps"]
+__all__ = [
+    "OVER_ALIGNMENT", "OVER_MARGIN", "arc_length", "next_degenerate_steps", "next_over_steps", "over_distance",
+    "plan_over_steps", "reset_over_steps", "take_over_steps",
+]
 
 #: Cosine of the largest angle between the tangents at the ends of a kept over step.
 OVER_ALIGNMENT = 0.9
@@ -75,17 +94,53 @@ def next_over_steps(size_before: np.ndarray, size_after: np.ndarray, reach: np.n
         return np.where(tried, 2.0 * ahead, 0.0)
 
 
+def next_degenerate_steps(size_before: np.ndarray, size_after: np.ndarray, reach: np.ndarray) -> np.ndarray:
+    """Length of the degenerate over step (0: none): twice the distance ahead at which
+    ``sqrt`` of the branch test's size extrapolates linearly to zero, exact where the size
+    vanishes quadratically, ``|b| = k d^2`` (a point where ``[M | g']`` loses rank by two)."""
+    root_before, root_after = np.sqrt(size_before), np.sqrt(size_after)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ahead = reach * root_after / (root_before - root_after)
+        tried = (root_before > root_after) & (root_after > 0) & (reach > 0) & np.isfinite(ahead)
+        return np.where(tried, 2.0 * ahead, 0.0)
+
+
+def plan_over_steps(stepper: BatchStepper, cases: np.ndarray, size: np.ndarray, reach: np.ndarray) -> None:
+    """After a committed step of length ``reach`` ending with branch-test size ``size``: the
+    over step each case tries next, and (three dofs or more) the degenerate one it tries
+    if that one finds no reversal (:data:`BatchStepper.over_length`, ``degenerate_length``)."""
+    if stepper.batch.has_total_form:
+        before = stepper.branch_size[cases]
+        stepper.over_length[cases] = length = next_over_steps(before, size, reach, stepper.options.newton_tol)
+        if stepper.batch.n_dof >= 3:
+            degenerate = next_degenerate_steps(before, size, reach)
+            stepper.degenerate_length[cases] = np.where(length > 0, degenerate, 0.0)
+    stepper.branch_size[cases] = size
+
+
+def reset_over_steps(stepper: BatchStepper, cases: np.ndarray) -> None:
+    """No over step planned for ``cases`` (a new control: none from the last one)."""
+    stepper.branch_size[cases] = np.nan
+    stepper.over_length[cases] = 0.0
+    stepper.degenerate_length[cases] = 0.0
+    stepper.over_degenerate[cases] = False
+
+
 def over_distance(newton_tol: float) -> float:
     """How near the extrapolated point a step must end for the next to step over it:
     ``OVER_MARGIN * sqrt(newton_tol)`` (1e-4 for the default 1e-12)."""
     return OVER_MARGIN * float(np.sqrt(newton_tol))
 
 
-def take_over_steps(stepper: BatchStepper, cases: np.ndarray) -> AcceptedSteps | None:
-    """The over steps of ``cases`` (their ``over_length``, reset here) that crossed a simple
-    bifurcation point, as accepted steps on their interpolant; None if none did."""
+def take_over_steps(stepper: BatchStepper, cases: np.ndarray) -> tuple[AcceptedSteps | None, np.ndarray]:
+    """The over steps of ``cases`` (their ``over_length``, reset here): those that crossed a
+    simple bifurcation point (or, tried as degenerate, a degenerate point) as accepted
+    steps on their interpolant (None if none did), and the cases that try a degenerate
+    over step next instead of a regular step."""
     length = stepper.over_length[cases]
+    degenerate = stepper.over_degenerate[cases]
     stepper.over_length[cases] = 0.0
+    stepper.over_degenerate[cases] = False
     layout, options = stepper.layout, stepper.options
     batch, stage = stepper.batch.take(cases), stepper.stages.take(cases)
     y_start, rate = stepper.y[cases], stepper.derivative[cases]
@@ -100,10 +155,17 @@ def take_over_steps(stepper: BatchStepper, cases: np.ndarray) -> AcceptedSteps |
     reference = stage.reference
     with np.errstate(invalid="ignore"):
         alignment = np.sum(aux.tangent.motion() * reference, axis=-1) / np.sqrt(np.sum(reference * reference, axis=-1))
-    crossed = np.isfinite(err) & np.isfinite(err_half) & aux.tangent.flipped & (alignment > OVER_ALIGNMENT)
+    aligned = np.isfinite(err) & np.isfinite(err_half) & (alignment > OVER_ALIGNMENT)
+    flipped = aux.tangent.flipped
+    crossed = aligned & (flipped != degenerate)  # a reversal at a simple point, none at a degenerate one
+    retry = aligned & ~flipped & ~degenerate & (stepper.degenerate_length[cases] > 0)
+    again = cases[retry]
+    stepper.over_length[again] = stepper.degenerate_length[again]
+    stepper.over_degenerate[again] = True
+    stepper.degenerate_length[cases] = 0.0
     kept = np.flatnonzero(crossed)
     if kept.size == 0:
-        return None
+        return None, again
     points = [_point(a, y, layout)[kept] for a, y in ((aux_start, y_start), (aux_half, y_half), (aux, y_end))]
     arc = arc_length(*points)
     rows = kept if kept.size < cases.size else slice(None)
@@ -113,7 +175,7 @@ def take_over_steps(stepper: BatchStepper, cases: np.ndarray) -> AcceptedSteps |
         y_end[rows], dy[rows], aux.take(kept),
     )
     steps.piece = Piece(over_interpolant(rate[rows], length[rows], arc), steps.y_start, arc, np.zeros(kept.size))
-    return steps
+    return steps, again
 
 
 def _point(aux: Any, y: np.ndarray, layout: Any) -> np.ndarray:

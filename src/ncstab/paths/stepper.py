@@ -31,7 +31,7 @@ from ncstab.paths.cut_points import cut_points, drop_limit_points_at_bifurcation
 from ncstab.paths.cycle_turns import CycleTurns
 from ncstab.paths.engine_choice import choose_engine
 from ncstab.paths.integrator import END_STAGE, step_factor
-from ncstab.paths.over_steps import next_over_steps, take_over_steps
+from ncstab.paths.over_steps import plan_over_steps, reset_over_steps, take_over_steps
 from ncstab.paths.events import signs_kept
 from ncstab.paths.options import AUTO, PathOptions
 from ncstab.paths.programme import LoadingProgramme
@@ -122,10 +122,13 @@ class BatchStepper(CaseEnds):
         #: Per case: 0 on the path followed from the start, +-1 once it has left along a
         #: bifurcating branch that way (stored with every state of a general model).
         self.branch_index = np.zeros(size, dtype=int)
-        #: Per case: the size of the branch test at its state, and the length of the over
-        #: step it tries next (0: none; :mod:`ncstab.paths.over_steps`).
+        #: Per case: the size of the branch test at its state, the length of the over step
+        #: it tries next (0: none) and whether that one is degenerate, and the length of the
+        #: degenerate one it tries if that finds no reversal (:mod:`ncstab.paths.over_steps`).
         self.branch_size = np.full(size, np.nan)
         self.over_length = np.zeros(size)
+        self.over_degenerate = np.zeros(size, dtype=bool)
+        self.degenerate_length = np.zeros(size)
         self.compiled, self.engine = choose_engine(batch, programme, options)
 
     @property
@@ -210,12 +213,13 @@ class BatchStepper(CaseEnds):
                 return True
         over = active[self.over_length[active] > 0]
         if over.size:  # over steps across simple bifurcation points (the others: a regular step)
-            crossed = take_over_steps(self, over)
+            crossed, again = take_over_steps(self, over)
+            done = again if crossed is None else np.concatenate([crossed.cases, again])
             if crossed is not None:
                 complete_in_pieces(self, crossed)
-                active = active[~np.isin(active, crossed.cases)]
-                if active.size == 0:
-                    return True
+            active = active[~np.isin(active, done)]  # (again: a degenerate over step next pass)
+            if active.size == 0:
+                return True
         steps = self._take_steps(active)
         if steps is not None:
             complete_in_pieces(self, steps)  # (which fails the cases that left the domain)
@@ -316,10 +320,7 @@ class BatchStepper(CaseEnds):
         self.indicators[cases] = signs_kept(self.indicators[cases], indicators, self.columns.target)
         self.stages.reference[cases] = steps.aux.tangent.motion()
         branch = steps.aux.tangent.branch
-        size = np.full(cases.size, np.nan) if branch is None else np.abs(branch)
-        if self.batch.has_total_form:
-            self.over_length[cases] = next_over_steps(self.branch_size[cases], size, reach, self.options.newton_tol)
-        self.branch_size[cases] = size
+        plan_over_steps(self, cases, np.full(cases.size, np.nan) if branch is None else np.abs(branch), reach)
         self.record(cases, steps.y_new, steps.aux, steps.stage)
 
     def _end_stages(
@@ -353,8 +354,7 @@ class BatchStepper(CaseEnds):
         if cases.size:
             # Stage indices before any case enters its next stage (enter() updates them).
             finished_index = self.stage_index[cases].copy()
-            self.branch_size[cases] = np.nan  # a new control: no over step from the last one
-            self.over_length[cases] = 0.0
+            reset_over_steps(self, cases)  # a new control: no over step from the last one
             for k in np.unique(finished_index):
                 stage_entry.enter(self, cases[finished_index == k], int(k) + 1)
 
