@@ -394,3 +394,28 @@ def test_a_parsed_study_is_remembered_valid_and_a_rejected_one_is_not(cache):
     with pytest.raises(ArchiveError, match="not a valid study file"):
         check_study_text(bad, "archive.nc")
     assert read_entry(VALID_STUDIES_KIND, _study_key(bad)) is None
+
+
+@pytest.mark.parametrize(("environment", "advised"), [(None, False), ("1", True), ("0", False)])
+def test_commands_switch_numpys_huge_page_advice_off_unless_the_environment_sets_it(
+    swept_archive, environment, advised
+):
+    """ncstab.cli.advise_numpy_memory: a command run in a fresh process imports numpy with
+    its transparent-huge-page advice off (its first touches of memory stalled for seconds
+    on a virtual machine), unless NUMPY_MADVISE_HUGEPAGE says otherwise."""
+    script = textwrap.dedent(f"""
+        import contextlib, io
+        from ncstab.cli import main
+        with contextlib.redirect_stdout(io.StringIO()):
+            code = main(["info", {str(swept_archive)!r}])
+        import numpy
+        core = getattr(numpy, "_core", None) or numpy.core  # numpy 2, numpy 1.26
+        print(code, core.multiarray._get_madvise_hugepage())
+    """)
+    env = {key: value for key, value in os.environ.items() if key != "NUMPY_MADVISE_HUGEPAGE"}
+    if environment is not None:
+        env["NUMPY_MADVISE_HUGEPAGE"] = environment
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120,
+                          env=env, check=False)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["0", str(advised)]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import logging
+import os
 import sys
 from collections.abc import Iterator
 from pathlib import Path
@@ -13,7 +14,7 @@ from typing import NoReturn, Sequence
 import ncstab
 from ncstab.run_command import command_run
 
-__all__ = ["main", "build_parser"]
+__all__ = ["advise_numpy_memory", "build_parser", "main"]
 
 
 class OneLineErrorParser(argparse.ArgumentParser):
@@ -236,6 +237,20 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def advise_numpy_memory() -> None:
+    """Switch numpy's transparent-huge-page advice off for a command, unless the
+    environment sets ``NUMPY_MADVISE_HUGEPAGE`` (numpy reads it once, on import, so this
+    acts only before numpy is imported: not where ``main`` is called from Python).
+
+    numpy advises the kernel to back arrays of 4 MB and more with huge pages.  On a
+    virtual machine whose host takes memory back, the first touch of such pages stalled
+    for seconds: ``ncstab run studies/stability_diagram.toml`` took 11.6-12.7 s with the
+    advice and 6.6-6.9 s without, for the same 7 s of CPU (docs/paths.md).
+    """
+    if "numpy" not in sys.modules:
+        os.environ.setdefault("NUMPY_MADVISE_HUGEPAGE", "0")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the ``ncstab`` command; its exit code (docs/when-things-go-wrong.md).
 
@@ -245,6 +260,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     cleanly with exit code 3; any other error is one line and exit code 3.
     With ``--debug`` the traceback is shown instead.
     """
+    advise_numpy_memory()
     from ncstab.heap import settled_heap
     from ncstab.studies.errors import EXIT_RUN_INCOMPLETE, NcstabError, RunError
     from ncstab.studies.interrupts import stop_on_signals
