@@ -15,7 +15,10 @@ both are checked against a tight reference (rtol 1e-13) on a subset of cases.
 For each thread count (``--threads 1 2``) it prints the median wall time,
 the CPU time over wall time, and the ratio to the loop; the ratio of 1 to 2
 threads is the speed-up.  The numba compilation of the law (once per machine)
-happens before the timed runs and is reported apart.  A benchmark, not a test:
+happens before the timed runs and is reported apart.  It says whether numpy's
+huge-page advice is on (the ``ncstab`` command switches it off; in Python it is
+numpy's default unless ``NUMPY_MADVISE_HUGEPAGE=0`` is set: first touches of
+memory stalled for seconds on a virtual machine).  A benchmark, not a test:
 nothing here asserts a time.
 
 Run:  python benchmarks/bench_default_engine.py [--cases-per-side 64] [--repeat 3] [--threads 1 2]
@@ -86,6 +89,9 @@ def main() -> None:
     start = time.perf_counter()
     run_engine(2)  # sympy derivation and numba compilation (or the cached loop)
     print(f"first run of 4 cases (compilation or cache load): {time.perf_counter() - start:.1f} s")
+    core = getattr(np, "_core", None) or np.core
+    print(f"numpy's huge-page advice: {'on' if core.multiarray._get_madvise_hugepage() else 'off'} "
+          "(NUMPY_MADVISE_HUGEPAGE=0 switches it off, as the ncstab command does; docs/paths.md)")
     dataset, engine_end = run_engine(side)
     print(f"{dataset.sizes['gamma'] * dataset.sizes['alpha0']} cases, engine: {dataset.attrs['engine']}")
     gamma, alpha0 = (m.ravel() for m in np.meshgrid(dataset["gamma"].values, dataset["alpha0"].values,
