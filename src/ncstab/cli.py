@@ -244,8 +244,8 @@ def advise_numpy_memory() -> None:
 
     numpy advises the kernel to back arrays of 4 MB and more with huge pages.  On a
     virtual machine whose host takes memory back, the first touch of such pages stalled
-    for seconds: ``ncstab run studies/stability_diagram.toml`` took 11.6-12.7 s with the
-    advice and 6.6-6.9 s without, for the same 7 s of CPU (docs/paths.md).
+    for seconds: ``ncstab run studies/stability_diagram.toml`` took 11.6-13.1 s with the
+    advice and 6.4-6.9 s without, for the same 7 s of CPU (docs/paths.md).
     """
     if "numpy" not in sys.modules:
         os.environ.setdefault("NUMPY_MADVISE_HUGEPAGE", "0")

@@ -39,8 +39,8 @@ STEPS_PER_CALL = 1
 ESTIMATED_GROWTH = 1.25
 #: Consecutive cases that go to the same thread (:meth:`CompiledStages._run_shared`).
 #: Dealt one by one, neighbouring cases' counters and states (8 to 40 bytes each) shared
-#: cache lines across the two threads: on 65,536 cases the loop ran 1.65x faster on 2
-#: threads than on 1; in blocks of 64, 2.0x (docs/paths.md).
+#: cache lines across the two threads: on 65,536 cases the loop ran 1.82-1.88x faster on
+#: 2 threads than on 1; in blocks of 64, 1.88-2.05x (docs/paths.md).
 SHARE_BLOCK = 64
 
 
