@@ -88,20 +88,23 @@ OVER_MARGIN = 100.0
 def next_over_steps(size_before: np.ndarray, size_after: np.ndarray, reach: np.ndarray, newton_tol: float) -> np.ndarray:
     """Length of the over step each case tries next (0: none), from the size of its branch
     test at the start and end of the step just committed (length ``reach``)."""
-    with np.errstate(invalid="ignore", divide="ignore"):
-        ahead = reach * size_after / (size_before - size_after)
-        tried = (size_before > size_after) & (size_after > 0) & (reach > 0) & (ahead <= over_distance(newton_tol))
-        return np.where(tried, 2.0 * ahead, 0.0)
+    return _twice_the_zero_ahead(size_before, size_after, reach, over_distance(newton_tol))
 
 
 def next_degenerate_steps(size_before: np.ndarray, size_after: np.ndarray, reach: np.ndarray) -> np.ndarray:
     """Length of the degenerate over step (0: none): twice the distance ahead at which
     ``sqrt`` of the branch test's size extrapolates linearly to zero, exact where the size
     vanishes quadratically, ``|b| = k d^2`` (a point where ``[M | g']`` loses rank by two)."""
-    root_before, root_after = np.sqrt(size_before), np.sqrt(size_after)
+    return _twice_the_zero_ahead(np.sqrt(size_before), np.sqrt(size_after), reach, np.inf)
+
+
+def _twice_the_zero_ahead(before: np.ndarray, after: np.ndarray, reach: np.ndarray, within: float) -> np.ndarray:
+    """``2 d``, d the distance ahead at which a value falling from ``before`` to ``after``
+    over ``reach`` extrapolates linearly to zero, where it falls toward zero and
+    ``d <= within``; else 0."""
     with np.errstate(invalid="ignore", divide="ignore"):
-        ahead = reach * root_after / (root_before - root_after)
-        tried = (root_before > root_after) & (root_after > 0) & (reach > 0) & np.isfinite(ahead)
+        ahead = reach * after / (before - after)
+        tried = (before > after) & (after > 0) & (reach > 0) & (ahead <= within)
         return np.where(tried, 2.0 * ahead, 0.0)
 
 
