@@ -28,7 +28,6 @@ from ncstab.systems.protocol import DiscreteSystem, conjugate_forces
 
 __all__ = [
     "STATE_KERNEL_OUTPUTS",
-    "assemble_interactions",
     "check_shared_parameters",
     "compile_state_kernel",
     "conjugate_tangent",
@@ -145,39 +144,6 @@ def tangent_operator_at_contact_state(
         geometric = (conjugate[..., :, None, None] * hessian[..., c, :, :, :]).sum(axis=-3)
         stiffness = stiffness + weights[c] * (material + geometric)
     return np.asarray(stiffness)
-
-
-def assemble_interactions(
-    contributions: list[tuple[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray, np.ndarray]],
-    size: int,
-    n: int,
-) -> tuple[np.ndarray, np.ndarray]:
-    """F and K of interaction families from their members' local kinematics.
-
-    Each family contributes ``(J, H, incidence, w, Q, D)``: the Jacobian
-    ``(B, m, k, L)`` and Hessian ``(B, m, k, L, L)`` of its members' variables
-    on their own L dofs, the one-hot ``incidence`` ``(m L, n)`` of those dofs,
-    the family's weight, the conjugate forces Q ``(B, m, k)`` and the law's
-    conjugate tangent D = dQ/dq ``(B, m, k, k)``.  Then (seed Eq. 5, 9, 16 and
-    their derivative, Eq. 30-34 for a contact)
-
-        F = sum w J^T Q,    K = sum w [J^T D J + sum_a Q_a H_a],
-
-    scattered from each member's dofs into the n dofs.  Returns ``(F (B, n),
-    K (B, n, n))``.
-    """
-    forces = np.zeros((size, n))
-    stiffness = np.zeros((size, n, n))
-    for jacobian, hessian, incidence, weight, conjugates, tangent in contributions:
-        m, width = jacobian.shape[1], jacobian.shape[-1]
-        local_forces = weight * np.einsum("bmkl,bmk->bml", jacobian, conjugates)
-        material = np.einsum("bmki,bmkl,bmlj->bmij", jacobian, tangent, jacobian)
-        geometric = np.einsum("bmk,bmkij->bmij", conjugates, hessian)
-        local_stiffness = weight * (material + geometric)
-        forces += local_forces.reshape(size, m * width) @ incidence
-        spread = local_stiffness @ incidence.reshape(m, width, n)  # (B, m, L, n)
-        stiffness += np.swapaxes(incidence, 0, 1) @ spread.reshape(size, m * width, n)
-    return forces, stiffness
 
 
 def tangent_operator(

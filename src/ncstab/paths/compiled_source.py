@@ -35,7 +35,7 @@ from ncstab.paths.contacts import ENTRY_NOISE, ENTRY_PROBE
 from ncstab.paths.domain_edge import EDGE_HALVINGS
 from ncstab.paths.over_steps import OVER_ALIGNMENT, OVER_MARGIN
 
-__all__ = ["CACHE_KIND", "kernel_body", "kernel_source", "load_module", "loop_source", "template_body"]
+__all__ = ["CACHE_KIND", "kernel_body", "kernel_source", "load_module", "load_named_module", "loop_source", "template_body"]
 
 
 def template_body(part: Callable[..., Any]) -> str:
@@ -195,22 +195,47 @@ def load_module(source: str, prefix: str) -> Any:
                   OVER_ALIGNMENT, OVER_MARGIN, numba.__version__, np.__version__))
     own = (Path(__file__).parent / "compiled.py").read_text(encoding="utf-8")
     digest = hashlib.sha256((source + stamp + own).encode()).hexdigest()[:20]
-    name = f"{prefix}_{digest}"
+    return load_named_module(f"{prefix}_{digest}", lambda: source)
+
+
+def load_named_module(name: str, source: Callable[[], str]) -> Any:
+    """Import the module ``name`` from the cache folder ``<cache root>/compiled``, writing
+    it first from ``source()`` where the folder does not hold it.
+
+    ``name`` must say everything the text depends on (:func:`load_module` hashes the
+    text itself; :class:`ncstab.paths.model_kernel.ModelKernel` the model it is printed
+    from, so that a cached model needs no sympy).  Written atomically; where the cache
+    directory cannot be written, a temporary one serves this process only.
+    """
     # One thread at a time (the threads of a dask worker run chunks side by side):
     # another thread must not find the module half executed.
     with _LOADING:
         if name in sys.modules:
             return sys.modules[name]
         try:
-            path = _write_module(cache_directory(CACHE_KIND), name, source)
+            directory = cache_directory(CACHE_KIND)
+            path = directory / f"{name}.py"
+            cached = path.is_file()
+            if not cached:
+                path = _write_module(directory, name, source())
         except OSError:  # a read-only home, say
-            path = _write_module(Path(tempfile.mkdtemp(prefix="ncstab-compiled-")), name, source)
-        spec = importlib.util.spec_from_file_location(name, path)
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[name] = module
+            path, cached = _write_module(Path(tempfile.mkdtemp(prefix="ncstab-compiled-")), name, source()), False
         try:
-            spec.loader.exec_module(module)
-        except BaseException:
-            del sys.modules[name]
-            raise
-        return module
+            return _execute(name, path)
+        except Exception:
+            if not cached:
+                raise
+        # a damaged entry (a truncated file, say): written again
+        return _execute(name, _write_module(path.parent, name, source()))
+
+
+def _execute(name: str, path: Path) -> Any:
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    try:
+        spec.loader.exec_module(module)
+    except BaseException:
+        del sys.modules[name]
+        raise
+    return module

@@ -9,17 +9,17 @@ is always ``(l, alpha, [N, T,] *parameters)`` with parameters in the order of
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Callable, Sequence
 
 import numpy as np
 import sympy as sp
 
-from ncstab.laws.definition import ALPHA, L, N, T, LawDefinition
+from ncstab.laws.definition import ALPHA, L, LawDefinition, N, T
 from ncstab.laws.registry import Law
 from ncstab.symbolic.derivation import derive_law
 
-__all__ = ["CompiledInteraction", "CompiledLaw", "compile_interaction", "compile_law", "lambdify_broadcast"]
+__all__ = ["CompiledLaw", "compile_law", "lambdify_broadcast"]
 
 ArrayFunction = Callable[..., np.ndarray]
 
@@ -111,7 +111,7 @@ class CompiledLaw:
         return self.energy_function(l, alpha, *law.parameter_values())[..., 0]
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def compile_law(definition: LawDefinition) -> CompiledLaw:
     """Derive (sympy, once) and lambdify (once) the numeric forms of a law."""
     derivation = derive_law(definition)
@@ -133,61 +133,3 @@ def compile_law(definition: LawDefinition) -> CompiledLaw:
     )
     overlap = lambdify_broadcast(contact + params, [definition.normal_overlap])
     return CompiledLaw(definition, normal, tangential, rate, energy, overlap)
-
-
-@dataclass(frozen=True)
-class CompiledInteraction:
-    """Numeric functions of any interaction law (the protocol of :mod:`ncstab.laws`).
-
-    Arguments are arrays that broadcast together: the law's variables q (k
-    arrays), its stored forces f (m arrays, where needed) and its parameters
-    in the law's order.  Outputs stack along the last axis.
-
-    Attributes
-    ----------
-    law
-        The law.
-    totals_function
-        ``(*q, *params) -> (..., m)`` the total forms (NaN for a force without one).
-    rate_function
-        ``(*q, *f, *params) -> (..., m k)`` the rate matrix C (df = C dq), row major.
-    conjugate_function
-        ``(*q, *f) -> (..., k)`` the conjugates Q (dW_int = Q . dq).
-    tangent_function
-        ``(*q, *f, *params) -> (..., k k)`` the conjugate tangent D = dQ/dq along the law.
-    overlap_function
-        ``(*q, *params) -> (..., 1)`` the normal overlap of a contact law, else ``None``.
-    """
-
-    law: object
-    totals_function: ArrayFunction
-    rate_function: ArrayFunction
-    conjugate_function: ArrayFunction
-    tangent_function: ArrayFunction
-    overlap_function: ArrayFunction | None
-
-    @property
-    def internal(self) -> tuple[int, ...]:
-        """Indices of the forces that are internal variables (no total form)."""
-        return tuple(i for i, t in enumerate(self.law.force_totals) if t is None)
-
-
-@functools.lru_cache(maxsize=None)
-def compile_interaction(law: object) -> CompiledInteraction:
-    """Derive (sympy, once: :func:`ncstab.symbolic.derive_interaction`) and lambdify a law."""
-    from ncstab.symbolic.interaction import derive_interaction
-
-    derivation = derive_interaction(law)
-    q = list(law.variables)
-    f = list(law.force_symbols)
-    params = list(law.parameter_symbols)
-    totals = [sp.nan if t is None else t for t in derivation.totals]
-    overlap = getattr(law, "normal_overlap", None)
-    return CompiledInteraction(
-        law=law,
-        totals_function=lambdify_broadcast(q + params, totals),
-        rate_function=lambdify_broadcast(q + f + params, list(derivation.rate_matrix)),
-        conjugate_function=lambdify_broadcast(q + f, list(law.conjugate_expressions)),
-        tangent_function=lambdify_broadcast(q + f + params, list(derivation.conjugate_tangent)),
-        overlap_function=None if overlap is None else lambdify_broadcast(q + params, [overlap]),
-    )

@@ -1,0 +1,73 @@
+"""The assembly of F, K and the internal rates, one member at a time, compiled (numba).
+
+Every generated model kernel (:mod:`ncstab.paths.model_kernel`) calls these
+helpers after its own code (each member's kinematics, each law's response).
+They implement (seed Eq. 5, 9, 16 and their derivative, Eq. 30-34 for a
+contact)
+
+    F += w J^T Q,   K += w [J^T D J + sum_c Q_c H_c],   d(internal)/du += C J,
+
+with J = dq/du (k x L) and H = d2q/du2 (k x L x L) on the member's own L dofs,
+Q its conjugate forces, D = dQ/dq along the law and C the rate rows of the
+forces that are internal variables, scattered into the n dofs; and the
+secondary-contact springs of closed gaps (energy w kappa g^2 / 2):
+
+    F += w kappa g grad g,   K += w kappa (grad g grad g^T + g hess g).
+"""
+
+from __future__ import annotations
+
+import numba
+
+__all__ = ["add_gap_springs", "add_member", "add_rate_row"]
+
+assemble = numba.njit(cache=True, error_model="numpy")
+
+
+@assemble
+def add_member(out, forces_at, stiffness_at, n, weight, local, count, k, width, kinematics, response):
+    # kinematics = (q (k), J (k x width), H (k x width x width)); response = (Q (k), D (k x k), ...)
+    jacobian_at, hessian_at = k, k + k * width
+    for a in range(count):
+        total = 0.0
+        for c in range(k):
+            total += kinematics[jacobian_at + c * width + a] * response[c]
+        out[forces_at + local[a]] += weight * total
+    for a in range(count):
+        for b in range(count):
+            total = 0.0
+            for c in range(k):
+                row = 0.0
+                for d in range(k):
+                    row += response[k + c * k + d] * kinematics[jacobian_at + d * width + b]
+                total += kinematics[jacobian_at + c * width + a] * row
+                total += response[c] * kinematics[hessian_at + (c * width + a) * width + b]
+            out[stiffness_at + local[a] * n + local[b]] += weight * total
+
+
+@assemble
+def add_rate_row(out, row_at, local, count, k, width, kinematics, rates, force):
+    # d(force)/du = sum_c C[force, c] J[c, :], scattered into the row of the internal variable
+    for a in range(count):
+        total = 0.0
+        for c in range(k):
+            total += rates[force * k + c] * kinematics[k + c * width + a]
+        out[row_at + local[a]] += total
+
+
+@assemble
+def add_gap_springs(out, forces_at, stiffness_at, n, gaps_at, count, state, kappa, weights, geometry):
+    # geometry = (g (count), grad g (count x n), hess g (count x n x n)); the springs of closed gaps
+    for g in range(count):
+        if (state >> g) & 1:
+            scale = kappa * weights[g]
+            value = geometry[g]
+            gradient_at = count + g * n
+            hessian_at = count + count * n + g * n * n
+            for i in range(n):
+                out[forces_at + i] += scale * value * geometry[gradient_at + i]
+                for j in range(n):
+                    term = geometry[gradient_at + i] * geometry[gradient_at + j]
+                    term += value * geometry[hessian_at + i * n + j]
+                    out[stiffness_at + i * n + j] += scale * term
+        out[gaps_at + g] = geometry[g]
