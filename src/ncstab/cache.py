@@ -57,7 +57,7 @@ CACHE_FORMAT = 1
 #: named here before it is used (:func:`cache_directory` refuses another name), so
 #: that ``ncstab cache`` reports and clears all of them, and nothing else.
 CACHE_KINDS: dict[str, str] = {
-    "compiled": "the compiled loops, model kernels and numba's machine code",
+    "compiled": "compiled loops and kernels, numba's machine code",
     "law_classes": "each law's class and derivation (ncstab laws)",
     "state_kernels": "each law's generated kernel of forces and K",
     "valid_studies": "study texts found valid in archives (ncstab info, plot)",
