@@ -37,36 +37,9 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from ncstab.operators.indicators import det_K
+from ncstab.paths.cofactor import cofactor_vectors
 
-__all__ = ["PathTangent", "StageArrays", "adjugate", "control_matrix", "effective_rate", "path_tangent"]
-
-
-def adjugate(matrix: np.ndarray) -> np.ndarray:
-    """Adjugate (transposed cofactor matrix) of ``(..., n, n)`` matrices.
-
-    ``matrix @ adjugate(matrix) = det(matrix) I`` holds even where the matrix
-    is singular.  Closed form for n = 1, 2; from the singular value
-    decomposition otherwise.
-    """
-    n = matrix.shape[-1]
-    if n == 1:
-        return np.ones_like(matrix)
-    if n == 2:
-        out = np.empty_like(matrix)
-        out[..., 0, 0] = matrix[..., 1, 1]
-        out[..., 1, 1] = matrix[..., 0, 0]
-        out[..., 0, 1] = -matrix[..., 0, 1]
-        out[..., 1, 0] = -matrix[..., 1, 0]
-        return out
-    # adj(M) = det(U) det(V) V diag(prod_{j != i} s_j) U^T for M = U S V^T: no
-    # division, so it is as accurate at a singular M as anywhere else.
-    u, s, vt = np.linalg.svd(matrix)
-    others = np.empty_like(s)
-    for i in range(n):
-        others[..., i] = np.prod(np.delete(s, i, axis=-1), axis=-1)
-    sign = np.linalg.det(u) * np.linalg.det(vt)
-    return sign[..., None, None] * (np.swapaxes(vt, -1, -2) * others[..., None, :]) @ np.swapaxes(u, -1, -2)
+__all__ = ["PathTangent", "StageArrays", "control_matrix", "effective_rate", "path_tangent"]
 
 
 @dataclass
@@ -273,8 +246,7 @@ def path_tangent(
         tangent = _path_tangent_2(du_dv, df_dv, stage, dg, oriented, load_rate)
     else:
         matrix = control_matrix(du_dv, df_dv, stage.force_controlled)
-        det_m = det_K(matrix)
-        dv = (adjugate(matrix) @ dg[:, :, None])[:, :, 0]
+        dv, det_m = cofactor_vectors(matrix, dg)  # (adj(M) g', det M) from one QR decomposition
         dlam = det_m
         du = (du_dv @ dv[:, :, None])[:, :, 0]
         df = (df_dv @ dv[:, :, None])[:, :, 0]
