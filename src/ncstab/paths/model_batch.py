@@ -159,10 +159,14 @@ class ModelBatch:
             return {k: (v[index] if np.ndim(v) else v) for k, v in values.items()}
 
         kappa = self.kappa[index] if np.ndim(self.kappa) else self.kappa
-        return ModelBatch(
+        part = ModelBatch(
             self.definition, self.laws, tuple(cut(v) for v in self.law_values), cut(self.parameters),
             kappa, self.activate_secondary, int(np.size(index)) if np.ndim(index) else 1,
         )
+        part.__dict__["_kernel"] = self._kernel  # the same model: no lookup (hashing its expressions)
+        if "_rows" in self.__dict__:
+            part.__dict__["_rows"] = self._rows[index]
+        return part
 
     def _parameter_tuple(self) -> tuple:
         return tuple(self.parameters[p.name] for p in self.definition.parameters)
