@@ -160,7 +160,10 @@ def unsupported_reason(batch: Any, programme: Any) -> str | None:
     if isinstance(batch, RigidCaseBatch):
         return "the pure-shear limit (normal = 'rigid') runs on the numpy stepper"
     if type(batch) is not CaseBatch:
-        return "general models (any system but the seed's reduced diamond) run on the numpy stepper"
+        return (
+            "general models (any system but the seed's reduced diamond) run on the numpy stepper, "
+            f"evaluated by their compiled model kernels (numba {numba.__version__})"
+        )
     kernels = batch._kernels
     if kernels is None or len(kernels) != (2 if batch.law.definition.no_tension else 1) or batch.n_dof != 2:
         return "this system has no fused state kernel; it runs on the numpy stepper"
