@@ -199,3 +199,42 @@ def test_a_cached_kernel_is_imported_without_sympy_and_a_damaged_one_written_aga
     module.write_text(module.read_text()[:200])  # cut in the middle of the docstring
     assert run("new") == first
     assert "def evaluate_case" in module.read_text()
+
+
+def _column_with(extra) -> object:
+    """Hencky's column of 3 links whose load gains ``extra`` (an expression of w1)."""
+    import dataclasses
+
+    from ncstab.systems.definition import SystemDefinition
+    from ncstab.systems.registry import system_definition
+
+    shipped = system_definition("column", (("links", 3),))
+    w1 = shipped.dof_symbols[0]
+    load = dataclasses.replace(shipped.load, vector=tuple(v + extra(w1) for v in shipped.load.vector))
+    return SystemDefinition(name="exotic", title="a column with an exotic load", dofs=shipped.dofs,
+                            forces=shipped.forces, families=shipped.families, load=load, domain=shipped.domain)
+
+
+def test_a_function_outside_the_math_module_is_refused_naming_the_system_and_the_function():
+    import sympy as sp
+
+    from ncstab import follow
+
+    with pytest.raises(ValueError, match=r"system 'exotic': .* besselj is not a function of Python's math module"):
+        follow(_column_with(lambda w: sp.besselj(0, w)), None, [{"drive": {"P": 0.5}}])
+
+
+def test_a_kernel_numba_cannot_compile_is_refused_naming_the_system(tmp_path, monkeypatch):
+    """A generated module whose kernel calls an unknown function (a stand-in for any
+    numba compilation error): a ValueError naming the system, not numba's traceback."""
+    import sympy as sp
+
+    from ncstab import follow
+    from ncstab.paths import model_kernel
+
+    monkeypatch.setenv("NCSTAB_CACHE_DIR", str(tmp_path))
+    real = model_kernel.kernel_source
+    monkeypatch.setattr(model_kernel, "kernel_source",
+                        lambda *args: real(*args).replace("add_member(out", "no_such_helper(out"))
+    with pytest.raises(ValueError, match=r"system 'exotic': numba cannot compile its kernel"):
+        follow(_column_with(lambda w: sp.erf(w) / 100), None, [{"drive": {"P": 0.5}}])

@@ -388,12 +388,21 @@ class ModelKernel:
     """
 
     def __init__(self, definition: SystemDefinition, laws: tuple[Any, ...], activate: bool) -> None:
+        from sympy.printing.codeprinter import PrintMethodNotImplementedError
+
         from ncstab.paths.compiled_source import load_named_module
 
         self.definition = definition
-        self.module = load_named_module(
-            kernel_name(definition, laws, activate), lambda: kernel_source(definition, laws, activate)
-        )
+        try:
+            self.module = load_named_module(
+                kernel_name(definition, laws, activate), lambda: kernel_source(definition, laws, activate)
+            )
+        except PrintMethodNotImplementedError as error:
+            function = str(error).split(": ")[-1].split("\n")[0]
+            raise ValueError(
+                f"system {definition.name!r}: its compiled kernel cannot be printed: {function} is not a function "
+                "of Python's math module (the kernels are compiled with numba; write it with math functions)"
+            ) from None
         self.layout = KernelLayout(**self.module.LAYOUT_FIELDS)
         self.free_parameters = self.module.FREE_PARAMETERS
 
@@ -415,7 +424,7 @@ class ModelKernel:
         out = np.empty((size, self.layout.size))
         if size == 0:
             return out
-        self.module.evaluate_batch(
+        self._compiled_batch()(
             np.ascontiguousarray(u, dtype=float),
             np.ascontiguousarray(internal, dtype=float).reshape(size, self.layout.n_internal),
             np.ascontiguousarray(np.broadcast_to(load, (size,)), dtype=float),
@@ -424,6 +433,18 @@ class ModelKernel:
             out,
         )
         return out
+
+
+    def _compiled_batch(self) -> Any:
+        """``evaluate_batch``, compiled (a numba error becomes a ValueError naming the system)."""
+        batch = self.module.evaluate_batch
+        if not batch.signatures:
+            try:
+                batch.compile("(f8[:, ::1], f8[:, ::1], f8[::1], i8[::1], f8[:, ::1], f8[:, ::1])")
+            except numba.core.errors.NumbaError as error:
+                first = str(error).strip().splitlines()[0]
+                raise ValueError(f"system {self.definition.name!r}: numba cannot compile its kernel: {first}") from None
+        return batch
 
 
 def kernel_name(definition: SystemDefinition, laws: tuple[Any, ...], activate: bool) -> str:
