@@ -1,374 +1,38 @@
 """Compiled model kernels: F, K, internal rates, gaps and loads of a general model, per case.
 
 A model (a :class:`~ncstab.systems.SystemDefinition` and one law per family)
-gets one generated module (:func:`kernel_source`, cached on disk beside its
-numba machine code by :func:`ncstab.paths.compiled_source.load_module`): each
-member's kinematics q(u), J = dq/du and H = d2q/du2 on its own dofs, each
-law's totals, conjugates Q, conjugate tangent D = dQ/dq and rate rows C of its
-internal forces, the load vector Q_ext(u) and its Jacobian, and the gaps with
-their derivatives, all printed from the system's and the laws' symbolic
-definitions after common-subexpression elimination; then ``evaluate_case``,
-which runs them member by member and assembles (:mod:`ncstab.paths.model_assembly`)
+gets one generated module (:func:`ncstab.paths.model_kernel_source.kernel_source`:
+each member's kinematics, each law's response, the loads and gaps, printed
+from their symbolic definitions, and ``evaluate_case``, which assembles
 
     F = sum_f w_f sum_m J_m^T Q_m - P Q_ext(u) + gap springs,
     K = dF/du = sum_f w_f sum_m [J_m^T D_m J_m + sum_c Q_mc H_mc] - P dQ_ext/du + ...
 
-(seed Eq. 5, 9, 16, 30-34) into one row of :class:`KernelLayout`.  sympy runs
-once per model and process (to print the module); numba compiles once per
-model and machine.  ``evaluate_batch`` runs the cases of a batch one after the
-other: a case's numbers never depend on its batch.
+(seed Eq. 5, 9, 16, 30-34) into one row of
+:class:`~ncstab.paths.model_kernel_source.KernelLayout`).  The module is kept in
+the cache folder ``compiled`` (:func:`ncstab.paths.compiled_source.load_named_module`)
+under a name hashed from the model (:func:`kernel_name`), beside its numba
+machine code: sympy runs once per model and machine, numba compiles once per
+model and machine.  A case's numbers never depend on its batch.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import hashlib
 import sys
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numba
 import numpy as np
 import sympy as sp
-from sympy.printing.pycode import PythonCodePrinter
 
-from ncstab.laws.catalogue import no_tension_branches
-from ncstab.paths import model_assembly
-from ncstab.symbolic.interaction import derive_interaction
+from ncstab.paths import model_assembly, model_kernel_source
+from ncstab.paths.model_kernel_source import KernelLayout, kernel_source
 from ncstab.systems.definition import SystemDefinition
 
 __all__ = ["KernelLayout", "ModelKernel", "kernel_name", "kernel_source", "model_kernel"]
-
-
-@dataclass(frozen=True)
-class KernelLayout:
-    """Where each quantity sits in a kernel's output row (and how long the row is).
-
-    Attributes
-    ----------
-    n
-        Number of dofs.
-    forces, stiffness, load
-        Offsets of F (n), K (n x n, row major) and dF/dP = -Q_ext (n; zeros
-        without a load parameter).
-    gradient
-        Offset of d(internal)/du (n_internal x n).
-    gaps, overlaps
-        Offsets of the gap values (one per gap) and of the normal overlaps of
-        the contacts that can open (no_tension laws, in bit order).
-    interactions
-        Per family, the offsets of its members' variables (m x k) and stored
-        forces (m x k_f).
-    size
-        The row's length.
-    """
-
-    n: int
-    n_internal: int
-    n_gaps: int
-    n_open: int
-    family_shapes: tuple[tuple[int, int, int], ...]  # (members, variables, forces) per family
-    forces: int
-    stiffness: int
-    load: int
-    gradient: int
-    gaps: int
-    overlaps: int
-    interactions: tuple[tuple[int, int], ...]
-    size: int
-
-    @classmethod
-    def build(cls, n: int, n_internal: int, n_gaps: int, n_open: int, shapes: list[tuple[int, int, int]]) -> KernelLayout:
-        at = 0
-
-        def take(width: int) -> int:
-            nonlocal at
-            at += width
-            return at - width
-
-        forces, stiffness, load = take(n), take(n * n), take(n)
-        gradient, gaps, overlaps = take(n_internal * n), take(n_gaps), take(n_open)
-        interactions = tuple((take(m * k), take(m * kf)) for m, k, kf in shapes)
-        return cls(n, n_internal, n_gaps, n_open, tuple(shapes), forces, stiffness, load, gradient, gaps, overlaps,
-                   interactions, at)
-
-
-class _Printer(PythonCodePrinter):
-    """Python printer for numba: math functions, Piecewise as conditional expressions."""
-
-    def __init__(self) -> None:
-        super().__init__({"fully_qualified_modules": True, "allow_unknown_functions": False})
-
-
-def _clean(expression: Any) -> sp.Expr:
-    # Dirac deltas (second derivatives of Macaulay brackets) vanish off the kink, as in
-    # ncstab.symbolic.compile.lambdify_broadcast
-    return sp.sympify(expression).replace(sp.DiracDelta, lambda *args: sp.Integer(0))
-
-
-def _statements(targets: list[str], expressions: list[Any], names: dict[sp.Symbol, str], indent: str) -> list[str]:
-    """``target = expression`` lines after common-subexpression elimination, the symbols
-    in ``names`` printed as the local variables they name."""
-    renamed = {symbol: sp.Symbol(name, real=True) for symbol, name in names.items()}
-    cleaned = [_clean(e).xreplace(renamed) for e in expressions]
-    replacements, reduced = sp.cse(cleaned, symbols=sp.numbered_symbols("x_"))
-    printer = _Printer()
-    lines = [f"{indent}{symbol} = {printer.doprint(value)}" for symbol, value in replacements]
-    lines += [f"{indent}{target} = {printer.doprint(value)}" for target, value in zip(targets, reduced)]
-    return lines
-
-
-def _function(name: str, arguments: str, prelude: list[str], body: list[str]) -> str:
-    lines = [f"@njit\ndef {name}({arguments}):", *prelude, *(body or ["    pass"])]
-    if not body or not body[-1].lstrip().startswith("return"):
-        lines.append("    return")
-    return "\n".join(lines) + "\n"
-
-
-def _members(family: Any, dofs: tuple[sp.Symbol, ...]) -> tuple[list[list[int]], int]:
-    """Each member's own dofs (those its variables depend on) and the family's width."""
-    locals_ = []
-    for q in family.variables:
-        free = set().union(*(sp.sympify(e).free_symbols for e in q))
-        locals_.append([i for i, symbol in enumerate(dofs) if symbol in free])
-    return locals_, max(1, max(len(x) for x in locals_))
-
-
-def _internal(law: Any) -> tuple[int, ...]:
-    return tuple(i for i, t in enumerate(law.force_totals) if t is None)
-
-
-def kernel_source(definition: SystemDefinition, laws: tuple[Any, ...], activate: bool) -> str:
-    """The generated module of a model (``activate``: closed gaps carry springs).
-
-    Besides the kernel, the module holds its output layout (``LAYOUT_FIELDS``, the
-    fields of :class:`KernelLayout`) and, per family, the names of the law parameters
-    a case gives (``FREE_PARAMETERS``, in the order of its parameter row after the
-    system's parameters; the others are fixed per member by the geometry).
-    """
-    dofs = definition.dof_symbols
-    n = len(dofs)
-    system_names = {p.symbol: f"p_{j}" for j, p in enumerate(definition.parameters)}
-    prelude = [f"    u_{i} = u[{i}]" for i in range(n)] + [f"    {name} = p[{j}]" for j, name in enumerate(system_names.values())]
-    dof_names = {symbol: f"u_{i}" for i, symbol in enumerate(dofs)}
-    functions, calls, free_names = [], [], []
-    slot = len(definition.parameters)
-    internal_at, open_bit = 0, len(definition.gaps)
-    work = 0
-    no_tension = [bool(getattr(law, "no_tension", False)) for law in laws]
-    n_open = sum(f.size for f, nt in zip(definition.families, no_tension) if nt)
-    n_internal = sum(f.size * len(_internal(law)) for f, law in zip(definition.families, laws))
-    layout_shapes = [(f.size, len(f.variables[0]), len(law.force_symbols)) for f, law in zip(definition.families, laws)]
-    layout = KernelLayout.build(n, n_internal, len(definition.gaps), n_open, layout_shapes)
-    overlap_at = layout.overlaps
-    globals_ = []
-    for f, (family, law) in enumerate(zip(definition.families, laws)):
-        locals_, width = _members(family, dofs)
-        k, kf = len(family.variables[0]), len(law.force_symbols)
-        internal = _internal(law)
-        globals_.append(f"LOCAL_{f} = np.array({[row + [0] * (width - len(row)) for row in locals_]!r}, dtype=np.int64)")
-        globals_.append(f"COUNT_{f} = np.array({[len(row) for row in locals_]!r}, dtype=np.int64)")
-        # each member's q, J, H on its own dofs: kin[0:k], kin[k:k + k width], kin[k + k width:]
-        body = []
-        for m, (q, own) in enumerate(zip(family.variables, locals_)):
-            targets, entries = [], []
-            for c, expression in enumerate(q):
-                targets.append(f"out[{c}]")
-                entries.append(expression)
-                for a, i in enumerate(own):
-                    gradient = sp.diff(expression, dofs[i])
-                    targets.append(f"out[{k + c * width + a}]")
-                    entries.append(gradient)
-                    for b, j in enumerate(own):
-                        targets.append(f"out[{k + k * width + (c * width + a) * width + b}]")
-                        entries.append(sp.diff(gradient, dofs[j]))
-            body.append(f"    if m == {m}:")
-            body += _statements(targets, entries, {**dof_names, **system_names}, "        ")
-        functions.append(_function(f"kinematics_{f}", "m, u, p, out", prelude, body))
-        # the law's parameters of each member: fixed by the geometry, or the case's
-        fixed = dict(family.member_parameters)
-        free = tuple(spec.name for spec in law.parameters if spec.name not in fixed)
-        free_names.append(free)
-        body = []
-        for m in range(family.size):
-            targets, entries = [], []
-            for j, spec in enumerate(law.parameters):
-                if spec.name in fixed:
-                    targets.append(f"out[{j}]")
-                    entries.append(fixed[spec.name][m])
-            if targets:
-                body.append(f"    if m == {m}:")
-                body += _statements(targets, entries, system_names, "        ")
-        body += [f"    out[{j}] = p[{slot + free.index(spec.name)}]" for j, spec in enumerate(law.parameters) if spec.name not in fixed]
-        slot += len(free)
-        functions.append(_function(f"law_parameters_{f}", "m, p, out", [f"    {name} = p[{j}]" for j, name in enumerate(system_names.values())], body))
-        # the law's totals and response, per smooth branch (no_tension: closed, open)
-        branches = no_tension_branches(law) if no_tension[f] else (law,)
-        q_names = {s: f"q_{c}" for c, s in enumerate(law.variables)}
-        f_names = {s: f"f_{c}" for c, s in enumerate(law.force_symbols)}
-        lp_names = {s: f"lp_{c}" for c, s in enumerate(law.parameter_symbols)}
-        q_prelude = [f"    q_{c} = q[{c}]" for c in range(k)] + [f"    lp_{c} = lp[{c}]" for c in range(len(law.parameters))]
-        for b, branch in enumerate(branches):
-            derivation = derive_interaction(branch)
-            totals = [(i, t) for i, t in enumerate(derivation.totals) if t is not None]
-            body = _statements([f"out[{i}]" for i, _ in totals], [t for _, t in totals], {**q_names, **lp_names}, "    ")
-            functions.append(_function(f"totals_{f}_{b}", "q, lp, out", q_prelude, body))
-            entries = list(branch.conjugate_expressions) + list(derivation.conjugate_tangent)
-            entries += [derivation.rate_matrix[i, c] for i in internal for c in range(k)]
-            body = _statements([f"out[{e}]" for e in range(len(entries))], entries, {**q_names, **f_names, **lp_names}, "    ")
-            prelude_f = q_prelude + [f"    f_{c} = f[{c}]" for c in range(kf)]
-            functions.append(_function(f"response_{f}_{b}", "q, f, lp, out", prelude_f, body))
-        if no_tension[f]:
-            body = _statements(["delta"], [branches[0].normal_overlap], {**q_names, **lp_names}, "    ") + ["    return delta"]
-            functions.append(_function(f"overlap_{f}", "q, lp", q_prelude, body))
-        work = max(work, k + k * width + k * width * width, len(law.parameters), kf, k + k * k + len(internal) * k)
-        calls.append(_family_call(f, family, law, k, kf, width, internal, internal_at, open_bit, overlap_at, layout, no_tension[f]))
-        internal_at += family.size * len(internal)
-        if no_tension[f]:
-            open_bit += family.size
-            overlap_at += family.size
-    free_count = slot - len(definition.parameters)
-    if definition.load is not None:
-        vector = sp.Matrix(definition.load.vector)
-        entries = list(vector) + list(vector.jacobian(sp.Matrix(dofs)))
-        body = _statements([f"out[{e}]" for e in range(len(entries))], entries, {**dof_names, **system_names}, "    ")
-        functions.append(_function("load_vector", "u, p, out", prelude, body))
-        work = max(work, n + n * n)
-    gap_count = len(definition.gaps)
-    if gap_count and not activate:
-        values = [g.distance for g in definition.gaps]
-        body = _statements([f"out[{e}]" for e in range(gap_count)], values, {**dof_names, **system_names}, "    ")
-        functions.append(_function("gap_values", "u, p, out", prelude, body))
-        work = max(work, gap_count)
-    elif gap_count:
-        values = [g.distance for g in definition.gaps]
-        entries = values + [sp.diff(g, u) for g in values for u in dofs] + [sp.diff(g, u, v) for g in values for u in dofs for v in dofs]
-        body = _statements([f"out[{e}]" for e in range(len(entries))], entries, {**dof_names, **system_names}, "    ")
-        functions.append(_function("gap_geometry", "u, p, out", prelude, body))
-        globals_.append(f"GAP_WEIGHTS = np.array({[float(g.weight) for g in definition.gaps]!r})")
-        work = max(work, gap_count * (1 + n + n * n))
-    rows = len(definition.parameters) + free_count
-    globals_.append(f"LAYOUT_FIELDS = {dataclasses.asdict(layout)!r}")
-    globals_.append(f"FREE_PARAMETERS = {tuple(free_names)!r}")
-    return _module_text(definition, layout, globals_, functions, calls, rows, work, activate)
-
-
-def _family_call(f, family, law, k, kf, width, internal, internal_at, open_bit, overlap_at, layout, no_tension) -> str:
-    """The statements of ``evaluate_case`` for family f: every member in turn."""
-    lines = [
-        f"    # family {f}: {family.name!r} ({family.size} {family.kind}s)",
-        f"    for m in range({family.size}):",
-        f"        kinematics_{f}(m, u, p, kin)",
-        f"        law_parameters_{f}(m, p, lp)",
-    ]
-    if no_tension:
-        lines += [
-            f"        if (state >> ({open_bit} + m)) & 1:  # the normal contact is open",
-            f"            totals_{f}_1(kin, lp, fv)",
-        ]
-        for c, i in enumerate(internal):
-            lines.append(f"            fv[{i}] = internal[{internal_at} + m * {len(internal)} + {c}]")
-        lines.append(f"            response_{f}_1(kin, fv, lp, response)")
-        lines.append("        else:")
-        pad = "            "
-    else:
-        pad = "        "
-    lines.append(f"{pad}totals_{f}_0(kin, lp, fv)")
-    for c, i in enumerate(internal):
-        lines.append(f"{pad}fv[{i}] = internal[{internal_at} + m * {len(internal)} + {c}]")
-    lines.append(f"{pad}response_{f}_0(kin, fv, lp, response)")
-    if no_tension:
-        lines.append(f"        out[{overlap_at} + m] = overlap_{f}(kin, lp)")
-    lines.append(
-        f"        add_member(out, {layout.forces}, {layout.stiffness}, {layout.n}, {float(family.weight)!r}, "
-        f"LOCAL_{f}[m], COUNT_{f}[m], {k}, {width}, kin, response)"
-    )
-    for c, _ in enumerate(internal):
-        row = f"({internal_at} + m * {len(internal)} + {c}) * {layout.n}"
-        lines.append(
-            f"        add_rate_row(out, {layout.gradient} + {row}, LOCAL_{f}[m], COUNT_{f}[m], {k}, {width}, kin, "
-            f"response[{k + k * k}:], {c})"
-        )
-    q_at, f_at = layout.interactions[f]
-    lines += [
-        f"        for c in range({k}):",
-        f"            out[{q_at} + m * {k} + c] = kin[c]",
-        f"        for c in range({kf}):",
-        f"            out[{f_at} + m * {kf} + c] = fv[c]",
-    ]
-    return "\n".join(lines)
-
-
-def _module_text(definition, layout: KernelLayout, globals_, functions, calls, rows: int, work: int, activate: bool) -> str:
-    n = layout.n
-    load = [
-        "    load_vector(u, p, kin)",
-        f"    for i in range({n}):",
-        f"        out[{layout.forces} + i] -= load * kin[i]",
-        f"        out[{layout.load} + i] = -kin[i]",
-        f"        for j in range({n}):",
-        f"            out[{layout.stiffness} + i * {n} + j] -= load * kin[{n} + i * {n} + j]",
-    ] if definition.load is not None else []
-    if not layout.n_gaps:
-        gaps = []
-    elif activate:  # secondary contacts activated: closed gaps carry springs
-        gaps = [
-            "    gap_geometry(u, p, kin)",
-            (f"    add_gap_springs(out, {layout.forces}, {layout.stiffness}, {n}, {layout.gaps}, {layout.n_gaps}, state, "
-             f"p[{rows}], GAP_WEIGHTS, kin)"),
-        ]
-    else:
-        gaps = ["    gap_values(u, p, kin)", f"    for g in range({layout.n_gaps}):", f"        out[{layout.gaps} + g] = kin[g]"]
-    body = "\n".join(calls)
-    # numba's cache of this module does not follow changes to the helpers it calls: their
-    # text's hash names the module anew (compiled_source.load_module hashes the text)
-    assembly = hashlib.sha256(Path(model_assembly.__file__).read_bytes()).hexdigest()[:20]
-    return f'''"""The compiled kernel of the model {definition.name!r}, generated by ncstab.paths.model_kernel: do not edit.
-
-Assembly helpers: ncstab.paths.model_assembly {assembly}."""
-import math
-
-import numba
-import numpy as np
-
-from ncstab.paths.model_assembly import add_gap_springs, add_member, add_rate_row
-
-njit = numba.njit(cache=True, error_model="numpy")
-
-#: the case's parameter row: the system's parameters, each family's free law parameters,
-#: then kappa
-ROW = {rows + 1}
-#: scratch per call (member kinematics, law parameters, forces, response)
-WORK = {work}
-SIZE = {layout.size}
-{chr(10).join(globals_)}
-
-
-{(chr(10) + chr(10)).join(functions)}
-
-@njit
-def evaluate_case(u, internal, load, state, p, out, scratch):
-    """One case: F, K, dF/dP, d(internal)/du, gaps, overlaps and interactions into out."""
-    for e in range({layout.interactions[0][0] if layout.interactions else layout.size}):
-        out[e] = 0.0
-    kin = scratch[0:WORK]
-    lp = scratch[WORK:2 * WORK]
-    fv = scratch[2 * WORK:3 * WORK]
-    response = scratch[3 * WORK:4 * WORK]
-{body}
-{chr(10).join(load)}
-{chr(10).join(gaps)}
-
-
-@njit
-def evaluate_batch(u, internal, load, state, p, out):
-    """Every case of a batch, one after the other."""
-    scratch = np.empty(4 * WORK)
-    for b in range(u.shape[0]):
-        evaluate_case(u[b], internal[b], load[b], state[b], p[b], out[b], scratch)
-'''
 
 
 class ModelKernel:
@@ -449,7 +113,8 @@ class ModelKernel:
 
 def kernel_name(definition: SystemDefinition, laws: tuple[Any, ...], activate: bool) -> str:
     """The cached module's name: ``model_`` and a hash of all it is printed from."""
-    generator = b"".join(Path(module.__file__).read_bytes() for module in (sys.modules[__name__], model_assembly))
+    modules = (sys.modules[__name__], model_kernel_source, model_assembly)
+    generator = b"".join(Path(module.__file__).read_bytes() for module in modules)
     versions = repr((numba.__version__, np.__version__, sp.__version__))
     digest = hashlib.sha256(repr((definition, laws, activate)).encode() + generator + versions.encode())
     return f"model_{digest.hexdigest()[:20]}"
