@@ -165,7 +165,7 @@ class ModelBatch:
         )
         part.__dict__["_kernel"] = self._kernel  # the same model: no lookup (hashing its expressions)
         if "_rows" in self.__dict__:
-            part.__dict__["_rows"] = self._rows[index]
+            part.__dict__["_rows"] = self._rows[np.atleast_1d(index)]
         return part
 
     def _parameter_tuple(self) -> tuple:
