@@ -75,3 +75,56 @@ def test_nan_entries_give_nan_and_an_empty_batch_gives_empty_arrays():
     assert np.isnan(det[0]) and np.isnan(dv).all()
     dv, det = cofactor_vectors(np.zeros((0, 4, 4)), np.zeros((0, 4)))
     assert dv.shape == (0, 4) and det.shape == (0,)
+
+
+@pytest.mark.parametrize("n", [2, 3, 5, 7])
+def test_the_minimum_norm_step_solves_the_constraint_with_the_least_norm(n):
+    """x = (dv, dlambda) from the QR decomposition: A x = -r with A = [M | -g'] (to
+    rounding of |A| |x|), and x lies in the row space of A (x = A^T w: orthogonal to the
+    null vector c, the cofactor vector), which makes it the minimum-norm solution."""
+    from ncstab.paths.cofactor import minimum_norm_steps
+
+    rng = np.random.default_rng(6 + n)
+    matrices, rates, residuals = rng.normal(size=(40, n, n)), rng.normal(size=(40, n)), rng.normal(size=(40, n))
+    dv, dlam, solved = minimum_norm_steps(matrices, rates, residuals)
+    assert solved.all()
+    x = np.column_stack([dv, dlam])
+    a = np.concatenate([matrices, -rates[:, :, None]], axis=-1)
+    size = np.abs(a).max(axis=(1, 2)) * np.abs(x).max(axis=1)
+    assert np.all(np.abs(np.einsum("bij,bj->bi", a, x) + residuals).max(axis=1) <= 1e-13 * size * n)
+    c_dv, c_det = cofactor_vectors(matrices, rates)
+    c = np.column_stack([c_dv, c_det])
+    cosine = np.abs(np.sum(x * c, axis=1)) / (np.linalg.norm(x, axis=1) * np.linalg.norm(c, axis=1))
+    assert cosine.max() < 1e-12
+
+
+def test_a_rank_deficient_constraint_is_left_to_least_squares():
+    """[M | -g'] of rank n - 1 (a row of zeros): not solved, NaN out, for the caller's
+    least squares (ncstab.paths.projection.minimum_norm_correction)."""
+    from ncstab.paths.cofactor import minimum_norm_steps
+
+    matrices = np.eye(4)[None].copy()
+    matrices[0, 2] = 0.0
+    rates = np.array([[1.0, 0.0, 0.0, 0.0]])
+    dv, dlam, solved = minimum_norm_steps(matrices, rates, np.ones((1, 4)))
+    assert not solved[0] and np.isnan(dv).all() and np.isnan(dlam[0])
+
+
+def test_the_projection_falls_back_to_least_squares_for_a_rank_deficient_constraint():
+    """minimum_norm_correction with 4 dofs, one row of [M | -g'] zero and its residual
+    zero (a consistent system of lower rank): the least-squares correction solves it."""
+    from ncstab.paths.projection import minimum_norm_correction
+
+    rng = np.random.default_rng(8)
+    matrix = rng.normal(size=(1, 4, 4))
+    matrix[0, 2] = 0.0
+    rates = rng.normal(size=(1, 4))
+    rates[0, 2] = 0.0
+    residual = rng.normal(size=(1, 4))
+    residual[0, 2] = 0.0
+    controlled = np.zeros((1, 4), dtype=bool)  # M = du/dv: the matrix given as du/dv
+    dv, dlam = minimum_norm_correction(matrix, matrix, controlled, rates, residual)
+    x = np.column_stack([dv, dlam])
+    a = np.concatenate([matrix, -rates[:, :, None]], axis=-1)
+    assert np.isfinite(x).all()
+    np.testing.assert_allclose(np.einsum("bij,bj->bi", a, x), -residual, rtol=0, atol=1e-12)

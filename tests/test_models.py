@@ -355,9 +355,9 @@ def test_the_newton_projection_of_an_n_dof_system_converges_quadratically():
         if residuals[-1] < 1e-14:
             break
         _, dg = stage.control_path(lam)
-        dv, z = minimum_norm_correction(evaluation.du_dv, evaluation.dF_dv, stage.force_controlled, dg, r)
+        dv, dlam = minimum_norm_correction(evaluation.du_dv, evaluation.dF_dv, stage.force_controlled, dg, r)
         u = u + dv
-        lam = lam + np.sum(dg * z, axis=-1)
+        lam = lam + dlam
     assert residuals[-1] < 1e-13
     for before, after in zip(residuals[:-1], residuals[1:]):
         if before > 1e-7:

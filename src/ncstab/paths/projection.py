@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from ncstab.paths.cofactor import minimum_norm_steps
 from ncstab.paths.integrator import dop853_step
 from ncstab.paths.model import Evaluation
 from ncstab.paths.options import PathOptions
@@ -58,36 +59,38 @@ def _correction_2(
 def minimum_norm_correction(
     du_dv: np.ndarray, df_dv: np.ndarray, force_controlled: np.ndarray, dg: np.ndarray, residual: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """(dv, z) with z = (M M^T + g g^T)^-1 r and dv = -M^T z (dlambda = g . z).
+    """(dv, dlambda): the minimum-norm solution of [M | -g'] (dv, dlambda) = -r.
 
-    Closed form for n = 2, batched solves otherwise; rows whose normal matrix
-    is singular (a rank-deficient control) by least squares, case by case.
+    For n = 2 in closed form, z = (M M^T + g g^T)^-1 r, dv = -M^T z, dlambda = g . z;
+    for more dofs from one QR decomposition of [M | -g']^T, compiled
+    (:func:`ncstab.paths.cofactor.minimum_norm_step`: no normal matrix, whose
+    condition number is the square of A's).  Rows of a rank-deficient A by least
+    squares on the normal matrix, case by case.
     """
     if dg.shape[-1] == 2:
         dv, z, singular = _correction_2(du_dv, df_dv, force_controlled, dg, residual)
         matrix = None
     else:
         matrix = control_matrix(du_dv, df_dv, force_controlled)
-        normal_matrix = matrix @ np.swapaxes(matrix, -1, -2) + dg[:, :, None] * dg[:, None, :]
-        with np.errstate(all="ignore"):
-            finite = np.isfinite(normal_matrix).all(axis=(-2, -1))
-            z = np.full(residual.shape, np.nan)
-            try:
-                z[finite] = np.linalg.solve(normal_matrix[finite], residual[finite][:, :, None])[:, :, 0]
-                singular = np.zeros(residual.shape[0], dtype=bool)
-            except np.linalg.LinAlgError:
-                singular = finite.copy()
-        dv = -np.einsum("bji,bj->bi", matrix, z)
-    if singular.any():  # rank-deficient normal matrix: least squares per case
+        dv, dlam, solved = minimum_norm_steps(matrix, dg, residual)
+        singular = ~solved & np.isfinite(matrix).all(axis=(-2, -1)) & np.isfinite(dg).all(axis=-1)
+        z = None
+    if singular.any():  # rank-deficient: least squares per case
         rows = np.flatnonzero(singular)
         if matrix is None:
             matrix = control_matrix(du_dv, df_dv, force_controlled)
         sub = matrix[rows]
         normal_matrix = sub @ np.swapaxes(sub, -1, -2) + dg[rows, :, None] * dg[rows, None, :]
         with np.errstate(all="ignore"):
-            z[rows] = np.stack([np.linalg.lstsq(a, r, rcond=None)[0] for a, r in zip(normal_matrix, residual[rows])])
-        dv[rows] = -np.einsum("bji,bj->bi", sub, z[rows])
-    return dv, z
+            least = np.stack([np.linalg.lstsq(a, r, rcond=None)[0] for a, r in zip(normal_matrix, residual[rows])])
+        dv[rows] = -np.einsum("bji,bj->bi", sub, least)
+        if z is None:
+            dlam[rows] = np.sum(dg[rows] * least, axis=-1)
+        else:
+            z[rows] = least
+    if z is not None:
+        dlam = np.sum(dg * z, axis=-1)
+    return dv, dlam
 
 
 def project(
@@ -129,9 +132,8 @@ def project(
         dF_dload = None if evaluation.dF_dload is None else evaluation.dF_dload[kept]
         dg = effective_rate(st, dg, dF_dload)
         du_dv, df_dv = evaluation.du_dv[kept], evaluation.dF_dv[kept]
-        dv, z = minimum_norm_correction(du_dv, df_dv, st.force_controlled, dg, residual)
+        dv, dlam = minimum_norm_correction(du_dv, df_dv, st.force_controlled, dg, residual)
         y[todo, layout.v] += dv
-        dlam = np.sum(dg * z, axis=-1)
         # Keep the work W consistent with the corrected path.
         if dv.shape[-1] == 2:
             du = np.empty(dv.shape)
