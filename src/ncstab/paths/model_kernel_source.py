@@ -126,6 +126,71 @@ def _internal(law: Any) -> tuple[int, ...]:
     return tuple(i for i, t in enumerate(law.force_totals) if t is None)
 
 
+def _kinematics_function(f: int, family: Any, locals_: list[list[int]], width: int, names: dict, prelude: list[str],
+                         dofs: tuple[sp.Symbol, ...]) -> str:
+    """``kinematics_f(m, u, p, out)``: member m's q, J and H on its own dofs into
+    ``out[0:k]``, ``out[k:k + k width]``, ``out[k + k width:]``."""
+    k = len(family.variables[0])
+    body = []
+    for m, (q, own) in enumerate(zip(family.variables, locals_)):
+        targets, entries = [], []
+        for c, expression in enumerate(q):
+            targets.append(f"out[{c}]")
+            entries.append(expression)
+            for a, i in enumerate(own):
+                gradient = sp.diff(expression, dofs[i])
+                targets.append(f"out[{k + c * width + a}]")
+                entries.append(gradient)
+                for b, j in enumerate(own):
+                    targets.append(f"out[{k + k * width + (c * width + a) * width + b}]")
+                    entries.append(sp.diff(gradient, dofs[j]))
+        body.append(f"    if m == {m}:")
+        body += _statements(targets, entries, names, "        ")
+    return _function(f"kinematics_{f}", "m, u, p, out", prelude, body)
+
+
+def _law_parameters_function(f: int, family: Any, law: Any, system_names: dict, slot: int) -> tuple[str, tuple[str, ...]]:
+    """``law_parameters_f(m, p, out)``: the law's parameters of member m, fixed by the
+    geometry or the case's (from ``p[slot:]``), and the names of the case's."""
+    fixed = dict(family.member_parameters)
+    free = tuple(spec.name for spec in law.parameters if spec.name not in fixed)
+    body = []
+    for m in range(family.size):
+        targets = [f"out[{j}]" for j, spec in enumerate(law.parameters) if spec.name in fixed]
+        entries = [fixed[spec.name][m] for spec in law.parameters if spec.name in fixed]
+        if targets:
+            body.append(f"    if m == {m}:")
+            body += _statements(targets, entries, system_names, "        ")
+    body += [f"    out[{j}] = p[{slot + free.index(spec.name)}]" for j, spec in enumerate(law.parameters) if spec.name not in fixed]
+    prelude = [f"    {name} = p[{j}]" for j, name in enumerate(system_names.values())]
+    return _function(f"law_parameters_{f}", "m, p, out", prelude, body), free
+
+
+def _law_functions(f: int, law: Any, branches: tuple[Any, ...], internal: tuple[int, ...], no_tension: bool) -> list[str]:
+    """Per smooth branch b, ``totals_f_b(q, lp, out)`` (the forces with a total form) and
+    ``response_f_b(q, f, lp, out)`` (Q, D, then the rate rows of the internal forces);
+    ``overlap_f(q, lp)`` for a no_tension law."""
+    k, kf = len(law.variables), len(law.force_symbols)
+    q_names = {s: f"q_{c}" for c, s in enumerate(law.variables)}
+    f_names = {s: f"f_{c}" for c, s in enumerate(law.force_symbols)}
+    lp_names = {s: f"lp_{c}" for c, s in enumerate(law.parameter_symbols)}
+    prelude = [f"    q_{c} = q[{c}]" for c in range(k)] + [f"    lp_{c} = lp[{c}]" for c in range(len(law.parameters))]
+    functions = []
+    for b, branch in enumerate(branches):
+        derivation = derive_interaction(branch)
+        totals = [(i, t) for i, t in enumerate(derivation.totals) if t is not None]
+        body = _statements([f"out[{i}]" for i, _ in totals], [t for _, t in totals], {**q_names, **lp_names}, "    ")
+        functions.append(_function(f"totals_{f}_{b}", "q, lp, out", prelude, body))
+        entries = list(branch.conjugate_expressions) + list(derivation.conjugate_tangent)
+        entries += [derivation.rate_matrix[i, c] for i in internal for c in range(k)]
+        body = _statements([f"out[{e}]" for e in range(len(entries))], entries, {**q_names, **f_names, **lp_names}, "    ")
+        functions.append(_function(f"response_{f}_{b}", "q, f, lp, out", prelude + [f"    f_{c} = f[{c}]" for c in range(kf)], body))
+    if no_tension:
+        body = _statements(["delta"], [branches[0].normal_overlap], {**q_names, **lp_names}, "    ") + ["    return delta"]
+        functions.append(_function(f"overlap_{f}", "q, lp", prelude, body))
+    return functions
+
+
 def kernel_source(definition: SystemDefinition, laws: tuple[Any, ...], activate: bool) -> str:
     """The generated module of a model (``activate``: closed gaps carry springs).
 
@@ -138,107 +203,54 @@ def kernel_source(definition: SystemDefinition, laws: tuple[Any, ...], activate:
     n = len(dofs)
     system_names = {p.symbol: f"p_{j}" for j, p in enumerate(definition.parameters)}
     prelude = [f"    u_{i} = u[{i}]" for i in range(n)] + [f"    {name} = p[{j}]" for j, name in enumerate(system_names.values())]
-    dof_names = {symbol: f"u_{i}" for i, symbol in enumerate(dofs)}
-    functions, calls, free_names = [], [], []
-    slot = len(definition.parameters)
-    internal_at, open_bit = 0, len(definition.gaps)
-    work = 0
+    geometry_names = {**{symbol: f"u_{i}" for i, symbol in enumerate(dofs)}, **system_names}
     no_tension = [bool(getattr(law, "no_tension", False)) for law in laws]
-    n_open = sum(f.size for f, nt in zip(definition.families, no_tension) if nt)
-    n_internal = sum(f.size * len(_internal(law)) for f, law in zip(definition.families, laws))
-    layout_shapes = [(f.size, len(f.variables[0]), len(law.force_symbols)) for f, law in zip(definition.families, laws)]
-    layout = KernelLayout.build(n, n_internal, len(definition.gaps), n_open, layout_shapes)
-    overlap_at = layout.overlaps
-    globals_ = []
+    shapes = [(f.size, len(f.variables[0]), len(law.force_symbols)) for f, law in zip(definition.families, laws)]
+    layout = KernelLayout.build(
+        n, sum(f.size * len(_internal(law)) for f, law in zip(definition.families, laws)), len(definition.gaps),
+        sum(f.size for f, nt in zip(definition.families, no_tension) if nt), shapes,
+    )
+    functions, calls, free_names, globals_ = [], [], [], []
+    slot = len(definition.parameters)
+    internal_at, open_bit, overlap_at = 0, len(definition.gaps), layout.overlaps
+    work = 0
     for f, (family, law) in enumerate(zip(definition.families, laws)):
         locals_, width = _members(family, dofs)
         k, kf = len(family.variables[0]), len(law.force_symbols)
         internal = _internal(law)
         globals_.append(f"LOCAL_{f} = np.array({[row + [0] * (width - len(row)) for row in locals_]!r}, dtype=np.int64)")
         globals_.append(f"COUNT_{f} = np.array({[len(row) for row in locals_]!r}, dtype=np.int64)")
-        # each member's q, J, H on its own dofs: kin[0:k], kin[k:k + k width], kin[k + k width:]
-        body = []
-        for m, (q, own) in enumerate(zip(family.variables, locals_)):
-            targets, entries = [], []
-            for c, expression in enumerate(q):
-                targets.append(f"out[{c}]")
-                entries.append(expression)
-                for a, i in enumerate(own):
-                    gradient = sp.diff(expression, dofs[i])
-                    targets.append(f"out[{k + c * width + a}]")
-                    entries.append(gradient)
-                    for b, j in enumerate(own):
-                        targets.append(f"out[{k + k * width + (c * width + a) * width + b}]")
-                        entries.append(sp.diff(gradient, dofs[j]))
-            body.append(f"    if m == {m}:")
-            body += _statements(targets, entries, {**dof_names, **system_names}, "        ")
-        functions.append(_function(f"kinematics_{f}", "m, u, p, out", prelude, body))
-        # the law's parameters of each member: fixed by the geometry, or the case's
-        fixed = dict(family.member_parameters)
-        free = tuple(spec.name for spec in law.parameters if spec.name not in fixed)
+        functions.append(_kinematics_function(f, family, locals_, width, geometry_names, prelude, dofs))
+        text, free = _law_parameters_function(f, family, law, system_names, slot)
+        functions.append(text)
         free_names.append(free)
-        body = []
-        for m in range(family.size):
-            targets, entries = [], []
-            for j, spec in enumerate(law.parameters):
-                if spec.name in fixed:
-                    targets.append(f"out[{j}]")
-                    entries.append(fixed[spec.name][m])
-            if targets:
-                body.append(f"    if m == {m}:")
-                body += _statements(targets, entries, system_names, "        ")
-        body += [f"    out[{j}] = p[{slot + free.index(spec.name)}]" for j, spec in enumerate(law.parameters) if spec.name not in fixed]
         slot += len(free)
-        functions.append(_function(f"law_parameters_{f}", "m, p, out", [f"    {name} = p[{j}]" for j, name in enumerate(system_names.values())], body))
-        # the law's totals and response, per smooth branch (no_tension: closed, open)
         branches = no_tension_branches(law) if no_tension[f] else (law,)
-        q_names = {s: f"q_{c}" for c, s in enumerate(law.variables)}
-        f_names = {s: f"f_{c}" for c, s in enumerate(law.force_symbols)}
-        lp_names = {s: f"lp_{c}" for c, s in enumerate(law.parameter_symbols)}
-        q_prelude = [f"    q_{c} = q[{c}]" for c in range(k)] + [f"    lp_{c} = lp[{c}]" for c in range(len(law.parameters))]
-        for b, branch in enumerate(branches):
-            derivation = derive_interaction(branch)
-            totals = [(i, t) for i, t in enumerate(derivation.totals) if t is not None]
-            body = _statements([f"out[{i}]" for i, _ in totals], [t for _, t in totals], {**q_names, **lp_names}, "    ")
-            functions.append(_function(f"totals_{f}_{b}", "q, lp, out", q_prelude, body))
-            entries = list(branch.conjugate_expressions) + list(derivation.conjugate_tangent)
-            entries += [derivation.rate_matrix[i, c] for i in internal for c in range(k)]
-            body = _statements([f"out[{e}]" for e in range(len(entries))], entries, {**q_names, **f_names, **lp_names}, "    ")
-            prelude_f = q_prelude + [f"    f_{c} = f[{c}]" for c in range(kf)]
-            functions.append(_function(f"response_{f}_{b}", "q, f, lp, out", prelude_f, body))
-        if no_tension[f]:
-            body = _statements(["delta"], [branches[0].normal_overlap], {**q_names, **lp_names}, "    ") + ["    return delta"]
-            functions.append(_function(f"overlap_{f}", "q, lp", q_prelude, body))
+        functions += _law_functions(f, law, branches, internal, no_tension[f])
         work = max(work, k + k * width + k * width * width, len(law.parameters), kf, k + k * k + len(internal) * k)
         calls.append(_family_call(f, family, law, k, kf, width, internal, internal_at, open_bit, overlap_at, layout, no_tension[f]))
         internal_at += family.size * len(internal)
         if no_tension[f]:
             open_bit += family.size
             overlap_at += family.size
-    free_count = slot - len(definition.parameters)
     if definition.load is not None:
         vector = sp.Matrix(definition.load.vector)
         entries = list(vector) + list(vector.jacobian(sp.Matrix(dofs)))
-        body = _statements([f"out[{e}]" for e in range(len(entries))], entries, {**dof_names, **system_names}, "    ")
+        body = _statements([f"out[{e}]" for e in range(len(entries))], entries, geometry_names, "    ")
         functions.append(_function("load_vector", "u, p, out", prelude, body))
         work = max(work, n + n * n)
     gap_count = len(definition.gaps)
-    if gap_count and not activate:
+    if gap_count:
         values = [g.distance for g in definition.gaps]
-        body = _statements([f"out[{e}]" for e in range(gap_count)], values, {**dof_names, **system_names}, "    ")
-        functions.append(_function("gap_values", "u, p, out", prelude, body))
-        work = max(work, gap_count)
-    elif gap_count:
-        values = [g.distance for g in definition.gaps]
-        entries = values + [sp.diff(g, u) for g in values for u in dofs] + [sp.diff(g, u, v) for g in values for u in dofs for v in dofs]
-        body = _statements([f"out[{e}]" for e in range(len(entries))], entries, {**dof_names, **system_names}, "    ")
-        functions.append(_function("gap_geometry", "u, p, out", prelude, body))
-        globals_.append(f"GAP_WEIGHTS = np.array({[float(g.weight) for g in definition.gaps]!r})")
-        work = max(work, gap_count * (1 + n + n * n))
-    rows = len(definition.parameters) + free_count
+        if activate:  # closed gaps carry springs: their gradients and Hessians too
+            values += [sp.diff(g, u) for g in values for u in dofs] + [sp.diff(g, u, v) for g in values for u in dofs for v in dofs]
+            globals_.append(f"GAP_WEIGHTS = np.array({[float(g.weight) for g in definition.gaps]!r})")
+        body = _statements([f"out[{e}]" for e in range(len(values))], values, geometry_names, "    ")
+        functions.append(_function("gap_geometry" if activate else "gap_values", "u, p, out", prelude, body))
+        work = max(work, len(values))
     globals_.append(f"LAYOUT_FIELDS = {dataclasses.asdict(layout)!r}")
     globals_.append(f"FREE_PARAMETERS = {tuple(free_names)!r}")
-    return _module_text(definition, layout, globals_, functions, calls, rows, work, activate)
+    return _module_text(definition, layout, globals_, functions, calls, slot, work, activate)
 
 
 def _family_call(f, family, law, k, kf, width, internal, internal_at, open_bit, overlap_at, layout, no_tension) -> str:
