@@ -8,7 +8,7 @@ times, from after ``import ncstab``:
 
 * ``build`` -- the model batch (``case_batch``: the system's and the laws'
   definitions, no kernel yet);
-* ``kernel`` -- :class:`ncstab.paths.model_kernel.ModelKernel`: printing the
+* ``kernel`` -- :class:`ncstab.operators.model_kernel.ModelKernel`: printing the
   module (sympy) or finding it, and importing it;
 * ``first call`` -- the first evaluation: numba compiles, or loads its machine
   code from the cache;
@@ -42,7 +42,7 @@ import numpy as np
 import ncstab
 from ncstab.paths import SystemSpec
 from ncstab.paths.api import case_batch, resolve_model
-from ncstab.paths.model_kernel import model_kernel
+from ncstab.operators.model_kernel import model_kernel
 
 name, settings, law = json.loads(sys.argv[1])
 start = time.perf_counter()

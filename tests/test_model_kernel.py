@@ -1,4 +1,4 @@
-"""The compiled model kernels of general models (ncstab.paths.model_kernel).
+"""The compiled model kernels of general models (ncstab.operators.model_kernel).
 
 The kernel is what every general model's forces, tangent operator, internal
 rates, gaps and loads come from; tests/test_models.py checks its K against
@@ -163,7 +163,7 @@ import sys
 import numpy as np
 from ncstab.paths import SystemSpec
 from ncstab.paths.api import case_batch
-from ncstab.paths import model_kernel
+from ncstab.operators import model_kernel
 
 if sys.argv[1] == "cached":  # sympy must not print the module again
     def refuse(*args):
@@ -230,12 +230,12 @@ def test_a_kernel_numba_cannot_compile_is_refused_naming_the_system(tmp_path, mo
     import sympy as sp
 
     from ncstab import follow
-    from ncstab.paths import model_kernel
+    from ncstab.operators import model_kernel
 
     monkeypatch.setenv("NCSTAB_CACHE_DIR", str(tmp_path))
     real = model_kernel.kernel_source
     monkeypatch.setattr(model_kernel, "kernel_source",
-                        lambda *args: real(*args).replace("add_member(out", "no_such_helper(out"))
+                        lambda *args: real(*args).replace("        add_member(out", "        no_such_helper(out"))
     with pytest.raises(ValueError, match=r"system 'exotic': numba cannot compile its kernel"):
         follow(_column_with(lambda w: sp.erf(w) / 100), None, [{"drive": {"P": 0.5}}])
 
@@ -261,3 +261,18 @@ def test_a_swept_column_case_equals_the_case_followed_alone_bit_for_bit():
         assert steps == int(case["n_steps"].item())
         for name in ("u", "F", "load"):
             np.testing.assert_array_equal(alone[name].isel(step=steps - 1).values, case[name].isel(step=steps - 1).values)
+
+
+def test_numba_keeps_its_machine_code_in_the_cache_folder_not_beside_ncstab():
+    """Every compiled function lives in a generated module of the cache folder
+    ``compiled`` (ncstab.generated_modules): after a general model's path (its kernel,
+    the cofactor tangent, the Newton correction) nothing of numba's lies beside
+    ncstab's own files (a read-only installation, ``ncstab cache clear``)."""
+    from pathlib import Path
+
+    import ncstab
+    from ncstab import follow
+
+    follow(SystemSpec("column", links=4), None, [{"drive": {"P": 0.7}}])
+    package = Path(ncstab.__file__).parent
+    assert not [p for pattern in ("*.nbi", "*.nbc") for p in package.rglob(pattern)]

@@ -4,8 +4,11 @@ The root is ``$NCSTAB_CACHE_DIR``, else ``$XDG_CACHE_HOME/ncstab``, else
 ``~/.cache/ncstab`` (:func:`cache_root`); each cache is one folder of it,
 ``<root>/<kind>`` (:func:`cache_directory`), named in :data:`CACHE_KINDS`:
 
-* ``compiled`` -- the generated loops of the compiled stepper, with numba's
-  machine code beside them (:mod:`ncstab.paths.compiled`);
+* ``compiled`` -- the generated modules numba compiles (the compiled stepper's
+  loops, :mod:`ncstab.paths.compiled`; general models' kernels,
+  :mod:`ncstab.operators.model_kernel`; the n-dof cofactor tangent,
+  :mod:`ncstab.paths.cofactor`), with numba's machine code beside them
+  (:mod:`ncstab.generated_modules`);
 * ``law_classes`` -- the class of a law and the derivation ``ncstab laws``
   prints (:mod:`ncstab.symbolic.class_cache`);
 * ``valid_studies`` -- the study texts already found valid in an archive

@@ -25,31 +25,31 @@ six dofs of a ring).
 The same decomposition gives the Newton projection's minimum-norm correction
 (:func:`minimum_norm_step`): [M | -g'] x = -r with A = R^T Q^T is solved by
 x = -Q [R1^-T r; 0], with no normal matrix A A^T (whose condition number is
-the square of A's).  Each function is one case (compiled, for compiled
-loops); :func:`cofactor_vectors` and :func:`minimum_norm_steps` run a batch,
-one case after the other.
+the square of A's).  Each function is one case, written in plain Python and
+compiled by numba in a generated module of the cache folder (so that numba's
+machine code is kept there: :func:`ncstab.generated_modules.compiled_module`;
+a compiled loop pastes them as they are); :func:`cofactor_vectors` and
+:func:`minimum_norm_steps` run a batch, one case after the other.
 """
 
 from __future__ import annotations
 
+import functools
 import math
+from typing import Any
 
-import numba
 import numpy as np
+
+from ncstab.generated_modules import compiled_module
 
 __all__ = ["cofactor_vector", "cofactor_vectors", "minimum_norm_step", "minimum_norm_steps", "work_size"]
 
 
-compiled = numba.njit(cache=True, error_model="numpy")
-
-
-@compiled
 def work_size(n):
     """The scratch :func:`cofactor_vector` and :func:`minimum_norm_step` need for n dofs."""
     return 2 * (n + 1) * n + 2 * (n + 1)
 
 
-@compiled
 def _factor(matrix, rate, work):
     """Householder QR of A^T = [M | -rate]^T in ``work``: R above the diagonal of the
     first block (its diagonal apart, in ``diagonal``), the reflections' vectors in the
@@ -95,7 +95,6 @@ def _factor(matrix, rate, work):
     return b, v, diagonal, vector, sign
 
 
-@compiled
 def _apply_q(v, vector):
     """vector <- Q vector = H_0 H_1 ... H_{n-1} vector (the reflections in reverse order)."""
     rows, n = v.shape
@@ -111,7 +110,6 @@ def _apply_q(v, vector):
                 vector[i] -= factor * v[i, k]
 
 
-@compiled
 def cofactor_vector(matrix, rate, out, work):
     """``out[:n] = adj(matrix) rate``, ``out[n] = det(matrix)`` (``work``: :func:`work_size`)."""
     n = rate.shape[0]
@@ -128,7 +126,6 @@ def cofactor_vector(matrix, rate, out, work):
         out[i] = scale * vector[i]
 
 
-@compiled
 def minimum_norm_step(matrix, rate, residual, out, work):
     """The minimum-norm solution x = (dv, dlambda) of [M | -rate] x = -residual, into
     ``out``; False (out untouched) where R has a zero on its diagonal (A of lower rank:
@@ -150,18 +147,25 @@ def minimum_norm_step(matrix, rate, residual, out, work):
     return True
 
 
-@compiled
 def _cofactor_batch(matrices, rates, out):
     work = np.empty(work_size(rates.shape[1]))
     for b in range(rates.shape[0]):
         cofactor_vector(matrices[b], rates[b], out[b], work)
 
 
-@compiled
 def _step_batch(matrices, rates, residuals, out, solved):
     work = np.empty(work_size(rates.shape[1]))
     for b in range(rates.shape[0]):
         solved[b] = minimum_norm_step(matrices[b], rates[b], residuals[b], out[b], work)
+
+
+@functools.cache
+def _compiled() -> Any:
+    """This module's per-case functions compiled by numba (a generated module in the cache
+    folder ``compiled``, :func:`ncstab.generated_modules.compiled_module`)."""
+    return compiled_module(
+        __name__, work_size, _factor, _apply_q, cofactor_vector, minimum_norm_step, _cofactor_batch, _step_batch
+    )
 
 
 def cofactor_vectors(matrices: np.ndarray, rates: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -171,7 +175,9 @@ def cofactor_vectors(matrices: np.ndarray, rates: np.ndarray) -> tuple[np.ndarra
     size, n = rates.shape
     out = np.empty((size, n + 1))
     if size:
-        _cofactor_batch(np.ascontiguousarray(matrices, dtype=float), np.ascontiguousarray(rates, dtype=float), out)
+        _compiled()._cofactor_batch(
+            np.ascontiguousarray(matrices, dtype=float), np.ascontiguousarray(rates, dtype=float), out
+        )
     return out[:, :n], out[:, n]
 
 
@@ -184,6 +190,6 @@ def minimum_norm_steps(
     out = np.full((size, n + 1), np.nan)
     solved = np.zeros(size, dtype=np.bool_)
     if size:
-        _step_batch(np.ascontiguousarray(matrices, dtype=float), np.ascontiguousarray(rates, dtype=float),
-                    np.ascontiguousarray(residuals, dtype=float), out, solved)
+        _compiled()._step_batch(np.ascontiguousarray(matrices, dtype=float), np.ascontiguousarray(rates, dtype=float),
+                                np.ascontiguousarray(residuals, dtype=float), out, solved)
     return out[:, :n], out[:, n], solved

@@ -13,14 +13,9 @@ hashed from everything it is built from and imported from there
 from __future__ import annotations
 
 import hashlib
-import importlib.util
 import inspect
-import os
 import re
-import sys
-import tempfile
 import textwrap
-import threading
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -28,14 +23,14 @@ from typing import Any
 import numba
 import numpy as np
 
-from ncstab.cache import cache_directory
+from ncstab.generated_modules import CACHE_KIND, load_named_module
 from ncstab.paths.compiled import FIRST_PARAMETER
 from ncstab.paths.events import INDICATOR_EVENTS, INDICATOR_GAP, SIGN_NOISE, TINY
 from ncstab.paths.contacts import ENTRY_NOISE, ENTRY_PROBE
 from ncstab.paths.domain_edge import EDGE_HALVINGS
 from ncstab.paths.over_steps import OVER_ALIGNMENT, OVER_MARGIN
 
-__all__ = ["CACHE_KIND", "kernel_body", "kernel_source", "load_module", "load_named_module", "loop_source", "template_body"]
+__all__ = ["CACHE_KIND", "kernel_body", "kernel_source", "load_module", "loop_source", "template_body"]
 
 
 def template_body(part: Callable[..., Any]) -> str:
@@ -161,23 +156,6 @@ def _function_source(function: Callable[..., Any], name: str) -> str:
     return re.sub(r"def \w+\(", f"def {name}(", text, count=1)
 
 
-#: The cache folder of the generated loops and numba's machine code (:mod:`ncstab.cache`).
-CACHE_KIND = "compiled"
-
-
-def _write_module(directory: Path, name: str, source: str) -> Path:
-    """``directory/name.py`` holding ``source`` (written atomically unless it already does)."""
-    directory.mkdir(parents=True, exist_ok=True)
-    path = directory / f"{name}.py"
-    if not path.exists() or path.read_text(encoding="utf-8") != source:
-        scratch = directory / f".{name}.{os.getpid()}.tmp"
-        scratch.write_text(source, encoding="utf-8")
-        os.replace(scratch, path)
-    return path
-
-
-#: Held while a generated module is written and executed.
-_LOADING = threading.Lock()
 
 
 def load_module(source: str, prefix: str) -> Any:
@@ -196,46 +174,3 @@ def load_module(source: str, prefix: str) -> Any:
     own = (Path(__file__).parent / "compiled.py").read_text(encoding="utf-8")
     digest = hashlib.sha256((source + stamp + own).encode()).hexdigest()[:20]
     return load_named_module(f"{prefix}_{digest}", lambda: source)
-
-
-def load_named_module(name: str, source: Callable[[], str]) -> Any:
-    """Import the module ``name`` from the cache folder ``<cache root>/compiled``, writing
-    it first from ``source()`` where the folder does not hold it.
-
-    ``name`` must say everything the text depends on (:func:`load_module` hashes the
-    text itself; :class:`ncstab.paths.model_kernel.ModelKernel` the model it is printed
-    from, so that a cached model needs no sympy).  Written atomically; where the cache
-    directory cannot be written, a temporary one serves this process only.
-    """
-    # One thread at a time (the threads of a dask worker run chunks side by side):
-    # another thread must not find the module half executed.
-    with _LOADING:
-        if name in sys.modules:
-            return sys.modules[name]
-        try:
-            directory = cache_directory(CACHE_KIND)
-            path = directory / f"{name}.py"
-            cached = path.is_file()
-            if not cached:
-                path = _write_module(directory, name, source())
-        except OSError:  # a read-only home, say
-            path, cached = _write_module(Path(tempfile.mkdtemp(prefix="ncstab-compiled-")), name, source()), False
-        try:
-            return _execute(name, path)
-        except Exception:
-            if not cached:
-                raise
-        # a damaged entry (a truncated file, say): written again
-        return _execute(name, _write_module(path.parent, name, source()))
-
-
-def _execute(name: str, path: Path) -> Any:
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    try:
-        spec.loader.exec_module(module)
-    except BaseException:
-        del sys.modules[name]
-        raise
-    return module

@@ -4,9 +4,9 @@
 :class:`~ncstab.systems.SystemDefinition` (the unreduced diamond, rings,
 columns, Ziegler's pendulum, a user's system).  Its forces, tangent
 operator, internal rates, gaps and loads come from the model's compiled
-kernel (:mod:`ncstab.paths.model_kernel`: printed once from the system's and
+kernel (:mod:`ncstab.operators.model_kernel`: printed once from the system's and
 the laws' symbolic definitions, compiled with numba and cached on disk),
-which assembles member by member (:mod:`ncstab.paths.model_assembly`):
+which assembles member by member (:mod:`ncstab.operators.model_assembly`):
 
     F = sum_f w_f sum_m J_m^T Q_m  -  P Q_ext(u) + gap springs,
     K = dF/du = sum_f w_f sum_m [J_m^T D_m J_m + sum_a Q_ma H_ma] - P dQ_ext/du + ...
@@ -29,7 +29,7 @@ import numpy as np
 
 from ncstab.paths.evaluation import Evaluation
 from ncstab.paths.events import IndicatorLayout
-from ncstab.paths.model_kernel import ModelKernel, model_kernel
+from ncstab.operators.model_kernel import ModelKernel, model_kernel
 from ncstab.paths.variables import family_fields
 from ncstab.systems.compile import CompiledSystem, compile_system
 from ncstab.systems.definition import SystemDefinition
@@ -222,7 +222,7 @@ class ModelBatch:
         load: np.ndarray | None = None,
     ) -> Evaluation:
         """Forces, tangent operator, gaps and overlaps at a batch of states, from the
-        model's compiled kernel (:mod:`ncstab.paths.model_kernel`).
+        model's compiled kernel (:mod:`ncstab.operators.model_kernel`).
 
         ``secondary_state`` (bits, default: from ``u``) is frozen within a
         step: closed gaps carry their springs, open normal contacts follow the

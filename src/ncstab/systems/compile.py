@@ -1,7 +1,7 @@
 """Numeric functions of a :class:`~ncstab.systems.SystemDefinition` besides its kernel, derived once.
 
 The forces, tangent operator, internal rates, loads and gaps of a model are
-its compiled kernel's (:mod:`ncstab.paths.model_kernel`, one per system and
+its compiled kernel's (:mod:`ncstab.operators.model_kernel`, one per system and
 laws).  :func:`compile_system` lambdifies the rest of the system's symbolic
 description (once per definition, cached) into broadcasting numpy functions
 of the dofs ``u`` (shape ``(B, n)``) and the system's parameters (each

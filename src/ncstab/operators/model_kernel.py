@@ -1,7 +1,7 @@
 """Compiled model kernels: F, K, internal rates, gaps and loads of a general model, per case.
 
 A model (a :class:`~ncstab.systems.SystemDefinition` and one law per family)
-gets one generated module (:func:`ncstab.paths.model_kernel_source.kernel_source`:
+gets one generated module (:func:`ncstab.operators.model_kernel_source.kernel_source`:
 each member's kinematics, each law's response, the loads and gaps, printed
 from their symbolic definitions, and ``evaluate_case``, which assembles
 
@@ -9,8 +9,8 @@ from their symbolic definitions, and ``evaluate_case``, which assembles
     K = dF/du = sum_f w_f sum_m [J_m^T D_m J_m + sum_c Q_mc H_mc] - P dQ_ext/du + ...
 
 (seed Eq. 5, 9, 16, 30-34) into one row of
-:class:`~ncstab.paths.model_kernel_source.KernelLayout`).  The module is kept in
-the cache folder ``compiled`` (:func:`ncstab.paths.compiled_source.load_named_module`)
+:class:`~ncstab.operators.model_kernel_source.KernelLayout`).  The module is kept in
+the cache folder ``compiled`` (:func:`ncstab.generated_modules.load_named_module`)
 under a name hashed from the model (:func:`kernel_name`), beside its numba
 machine code: sympy runs once per model and machine, numba compiles once per
 model and machine.  A case's numbers never depend on its batch.
@@ -28,8 +28,8 @@ import numba
 import numpy as np
 import sympy as sp
 
-from ncstab.paths import model_assembly, model_kernel_source
-from ncstab.paths.model_kernel_source import KernelLayout, kernel_source
+from ncstab.operators import model_assembly, model_kernel_source
+from ncstab.operators.model_kernel_source import KernelLayout, kernel_source
 from ncstab.systems.definition import SystemDefinition
 
 __all__ = ["KernelLayout", "ModelKernel", "kernel_name", "kernel_source", "model_kernel"]
@@ -54,7 +54,7 @@ class ModelKernel:
     def __init__(self, definition: SystemDefinition, laws: tuple[Any, ...], activate: bool) -> None:
         from sympy.printing.codeprinter import PrintMethodNotImplementedError
 
-        from ncstab.paths.compiled_source import load_named_module
+        from ncstab.generated_modules import load_named_module
 
         self.definition = definition
         try:

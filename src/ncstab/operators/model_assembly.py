@@ -1,7 +1,9 @@
-"""The assembly of F, K and the internal rates, one member at a time, compiled (numba).
+"""The assembly of F, K and the internal rates, one member at a time.
 
-Every generated model kernel (:mod:`ncstab.paths.model_kernel`) calls these
-helpers after its own code (each member's kinematics, each law's response).
+Every generated model kernel (:mod:`ncstab.operators.model_kernel_source`)
+holds these functions, compiled by numba with the rest of it (their text is
+pasted into the module: numba keeps its machine code in the cache folder), and
+calls them after its own code (each member's kinematics, each law's response).
 They implement (seed Eq. 5, 9, 16 and their derivative, Eq. 30-34 for a
 contact)
 
@@ -17,14 +19,9 @@ secondary-contact springs of closed gaps (energy w kappa g^2 / 2):
 
 from __future__ import annotations
 
-import numba
-
-__all__ = ["add_gap_springs", "add_member", "add_rate_row"]
-
-assemble = numba.njit(cache=True, error_model="numpy")
+__all__ = ["ASSEMBLY", "add_gap_springs", "add_member", "add_rate_row"]
 
 
-@assemble
 def add_member(out, forces_at, stiffness_at, n, weight, local, count, k, width, kinematics, response):
     # kinematics = (q (k), J (k x width), H (k x width x width)); response = (Q (k), D (k x k), ...)
     jacobian_at, hessian_at = k, k + k * width
@@ -45,7 +42,6 @@ def add_member(out, forces_at, stiffness_at, n, weight, local, count, k, width, 
             out[stiffness_at + local[a] * n + local[b]] += weight * total
 
 
-@assemble
 def add_rate_row(out, row_at, local, count, k, width, kinematics, rates, force):
     # d(force)/du = sum_c C[force, c] J[c, :], scattered into the row of the internal variable
     for a in range(count):
@@ -55,7 +51,6 @@ def add_rate_row(out, row_at, local, count, k, width, kinematics, rates, force):
         out[row_at + local[a]] += total
 
 
-@assemble
 def add_gap_springs(out, forces_at, stiffness_at, n, gaps_at, count, state, kappa, weights, geometry):
     # geometry = (g (count), grad g (count x n), hess g (count x n x n)); the springs of closed gaps
     for g in range(count):
@@ -71,3 +66,7 @@ def add_gap_springs(out, forces_at, stiffness_at, n, gaps_at, count, state, kapp
                     term += value * geometry[hessian_at + i * n + j]
                     out[stiffness_at + i * n + j] += scale * term
         out[gaps_at + g] = geometry[g]
+
+
+#: The functions every generated model kernel holds.
+ASSEMBLY = (add_member, add_rate_row, add_gap_springs)
