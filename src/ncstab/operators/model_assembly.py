@@ -12,7 +12,8 @@ contact)
 with J = dq/du (k x L) and H = d2q/du2 (k x L x L) on the member's own L dofs,
 Q its conjugate forces, D = dQ/dq along the law and C the rate rows of the
 forces that are internal variables, scattered into the n dofs; and the
-secondary-contact springs of closed gaps (energy w kappa g^2 / 2):
+secondary-contact springs of closed gaps (energy w kappa g^2 / 2), each gap's
+derivatives on its own dofs:
 
     F += w kappa g grad g,   K += w kappa (grad g grad g^T + g hess g).
 """
@@ -51,21 +52,23 @@ def add_rate_row(out, row_at, local, count, k, width, kinematics, rates, force):
         out[row_at + local[a]] += total
 
 
-def add_gap_springs(out, forces_at, stiffness_at, n, gaps_at, count, state, kappa, weights, geometry):
-    # geometry = (g (count), grad g (count x n), hess g (count x n x n)); the springs of closed gaps
+def add_gap_springs(out, forces_at, stiffness_at, n, gaps_at, count, width, local, counts, state, kappa, weights,
+                    geometry):
+    # geometry = (g (count), grad g (count x width), hess g (count x width x width)) on each
+    # gap's own dofs local[g, :counts[g]]; the springs of closed gaps, scattered into the n dofs
     for g in range(count):
+        value = geometry[g]
+        out[gaps_at + g] = value
         if (state >> g) & 1:
             scale = kappa * weights[g]
-            value = geometry[g]
-            gradient_at = count + g * n
-            hessian_at = count + count * n + g * n * n
-            for i in range(n):
-                out[forces_at + i] += scale * value * geometry[gradient_at + i]
-                for j in range(n):
-                    term = geometry[gradient_at + i] * geometry[gradient_at + j]
-                    term += value * geometry[hessian_at + i * n + j]
-                    out[stiffness_at + i * n + j] += scale * term
-        out[gaps_at + g] = geometry[g]
+            gradient_at = count + g * width
+            hessian_at = count + count * width + g * width * width
+            for a in range(counts[g]):
+                out[forces_at + local[g, a]] += scale * value * geometry[gradient_at + a]
+                for b in range(counts[g]):
+                    term = geometry[gradient_at + a] * geometry[gradient_at + b]
+                    term += value * geometry[hessian_at + a * width + b]
+                    out[stiffness_at + local[g, a] * n + local[g, b]] += scale * term
 
 
 #: The functions every generated model kernel holds.

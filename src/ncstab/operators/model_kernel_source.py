@@ -115,11 +115,12 @@ def _function(name: str, arguments: str, prelude: list[str], body: list[str]) ->
     return "\n".join(lines) + "\n"
 
 
-def _members(family: Any, dofs: tuple[sp.Symbol, ...]) -> tuple[list[list[int]], int]:
-    """Each member's own dofs (those its variables depend on) and the family's width."""
+def _own_dofs(expressions: Any, dofs: tuple[sp.Symbol, ...]) -> tuple[list[list[int]], int]:
+    """Each item's own dofs (those its expressions depend on: a family member's variables,
+    a gap's distance) and the largest count (at least 1)."""
     locals_ = []
-    for q in family.variables:
-        free = set().union(*(sp.sympify(e).free_symbols for e in q))
+    for item in expressions:
+        free = set().union(*(sp.sympify(e).free_symbols for e in item))
         locals_.append([i for i, symbol in enumerate(dofs) if symbol in free])
     return locals_, max(1, max(len(x) for x in locals_))
 
@@ -217,7 +218,7 @@ def kernel_source(definition: SystemDefinition, laws: tuple[Any, ...], activate:
     internal_at, open_bit, overlap_at = 0, len(definition.gaps), layout.overlaps
     work = 0
     for f, (family, law) in enumerate(zip(definition.families, laws)):
-        locals_, width = _members(family, dofs)
+        locals_, width = _own_dofs(family.variables, dofs)
         k, kf = len(family.variables[0]), len(law.force_symbols)
         internal = _internal(law)
         globals_.append(f"LOCAL_{f} = np.array({[row + [0] * (width - len(row)) for row in locals_]!r}, dtype=np.int64)")
@@ -243,10 +244,20 @@ def kernel_source(definition: SystemDefinition, laws: tuple[Any, ...], activate:
         work = max(work, n + n * n)
     gap_count = len(definition.gaps)
     if gap_count:
-        values = [g.distance for g in definition.gaps]
-        if activate:  # closed gaps carry springs: their gradients and Hessians too
-            values += [sp.diff(g, u) for g in values for u in dofs] + [sp.diff(g, u, v) for g in values for u in dofs for v in dofs]
+        distances = [g.distance for g in definition.gaps]
+        values = list(distances)
+        if activate:  # closed gaps carry springs: their gradients and Hessians on their own dofs too
+            locals_, width = _own_dofs([(g,) for g in distances], dofs)
+            padded = [own + [None] * (width - len(own)) for own in locals_]
+            values += [sp.diff(g, dofs[i]) if i is not None else 0 for g, own in zip(distances, padded) for i in own]
+            values += [
+                sp.diff(g, dofs[i], dofs[j]) if i is not None and j is not None else 0
+                for g, own in zip(distances, padded) for i in own for j in own
+            ]
             globals_.append(f"GAP_WEIGHTS = np.array({[float(g.weight) for g in definition.gaps]!r})")
+            globals_.append(f"GAP_LOCAL = np.array({[row + [0] * (width - len(row)) for row in locals_]!r}, dtype=np.int64)")
+            globals_.append(f"GAP_COUNT = np.array({[len(row) for row in locals_]!r}, dtype=np.int64)")
+            globals_.append(f"GAP_WIDTH = {width}")
         body = _statements([f"out[{e}]" for e in range(len(values))], values, geometry_names, "    ")
         functions.append(_function("gap_geometry" if activate else "gap_values", "u, p, out", prelude, body))
         work = max(work, len(values))
@@ -316,8 +327,8 @@ def _module_text(definition, layout: KernelLayout, globals_, functions, calls, r
     elif activate:  # secondary contacts activated: closed gaps carry springs
         gaps = [
             "    gap_geometry(u, p, kin)",
-            (f"    add_gap_springs(out, {layout.forces}, {layout.stiffness}, {n}, {layout.gaps}, {layout.n_gaps}, state, "
-             f"p[{rows}], GAP_WEIGHTS, kin)"),
+            (f"    add_gap_springs(out, {layout.forces}, {layout.stiffness}, {n}, {layout.gaps}, {layout.n_gaps}, "
+             f"GAP_WIDTH, GAP_LOCAL, GAP_COUNT, state, p[{rows}], GAP_WEIGHTS, kin)"),
         ]
     else:
         gaps = ["    gap_values(u, p, kin)", f"    for g in range({layout.n_gaps}):", f"        out[{layout.gaps} + g] = kin[g]"]
