@@ -98,7 +98,6 @@ class ModelKernel:
         )
         return out
 
-
     def _compiled_batch(self) -> Any:
         """``evaluate_batch``, compiled (a numba error becomes a ValueError naming the system)."""
         batch = self.module.evaluate_batch

@@ -18,9 +18,9 @@ top of R, so
 (Allgower & Georg, *Numerical Continuation Methods*, Sect. 2.3 and 4.1: the
 tangent from a QR decomposition, oriented by the sign of det [A; t^T]).
 det(Q) is (-1) to the number of reflections applied.  No division by a pivot:
-as accurate at a singular M as anywhere else (where ``tangent_field.adjugate``
-took a singular value decomposition, an order of magnitude slower for the
-six dofs of a ring).
+as accurate at a singular M as anywhere else, and an order of magnitude faster
+for the six dofs of a ring than the singular value decomposition of adj(M) it
+replaced.
 
 The same decomposition gives the Newton projection's minimum-norm correction
 (:func:`minimum_norm_step`): [M | -g'] x = -r with A = R^T Q^T is solved by
