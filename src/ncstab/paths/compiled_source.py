@@ -25,9 +25,9 @@ import numpy as np
 
 from ncstab.generated_modules import CACHE_KIND, load_named_module
 from ncstab.paths.compiled import FIRST_PARAMETER
-from ncstab.paths.events import INDICATOR_EVENTS, INDICATOR_GAP, SIGN_NOISE, TINY
 from ncstab.paths.contacts import ENTRY_NOISE, ENTRY_PROBE
 from ncstab.paths.domain_edge import EDGE_HALVINGS
+from ncstab.paths.events import INDICATOR_EVENTS, INDICATOR_GAP, SIGN_NOISE, TINY
 from ncstab.paths.over_steps import OVER_ALIGNMENT, OVER_MARGIN
 
 __all__ = ["CACHE_KIND", "kernel_body", "kernel_source", "load_module", "loop_source", "template_body"]
@@ -58,9 +58,12 @@ def loop_source(rate_form: bool) -> str:
     first-class function of :data:`ncstab.paths.compiled.LAW_SIGNATURE`), so a new law compiles its
     kernel only.
     """
-    from ncstab.paths import loop_cases, loop_model, loop_step_limits, loop_steps
+    from ncstab.paths import loop_cases, loop_diamond, loop_model, loop_step_limits, loop_steps
 
-    parts = (loop_model.model_part, loop_steps.steps_part, loop_step_limits.limits_part, loop_cases.cases_part)
+    parts = (
+        loop_model.model_part, loop_diamond.access_part, loop_steps.steps_part, loop_step_limits.limits_part,
+        loop_cases.cases_part,
+    )
     body = "\n".join(template_body(part) for part in parts)
     body = body.replace("cache=False", "cache=True").replace("return StageLoop(run_cases, start)", "LOOP = StageLoop(run_cases, start)")
     header = f'''"""The compiled stage loop of the laws {"with" if rate_form else "without"} a rate form,

@@ -90,8 +90,8 @@ class CompiledStages:
         values += [np.broadcast_to(np.asarray(v, dtype=float), (size,)) for v in batch.law.parameter_values()]
         self.parameters = np.ascontiguousarray(np.stack(values, axis=-1))
         cos0, sin0 = batch._alpha0_trig
-        self.cos0 = np.ascontiguousarray(np.broadcast_to(cos0, (size,)), dtype=float)
-        self.sin0 = np.ascontiguousarray(np.broadcast_to(sin0, (size,)), dtype=float)
+        # each case's geometry row as the loop reads it: (cos alpha0, sin alpha0)
+        self.geometry = np.column_stack([np.broadcast_to(cos0, (size,)), np.broadcast_to(sin0, (size,))]).astype(float)
         self.code = np.zeros(size, dtype=np.int64)
         self.detail = np.zeros(size, dtype=np.int64)
 
@@ -106,7 +106,7 @@ class CompiledStages:
             cases.astype(np.int64), stepper.y, stepper.derivative, stepper.indicators, stepper.arclength,
             stages.force_controlled, control_rows(stages), stages.lam_end, stages.target_sign, stages.orientation,
             stages.reference, np.ascontiguousarray(stages.secondary_state, dtype=np.int64), stages.cycles_done,
-            self.law, self.parameters, self.cos0, self.sin0,
+            self.law, self.parameters, self.geometry,
             stepper.stage_index[cases[0]] if cases.size else 0,
             tuple(recorder.arrays[name] for name in stepper.record_fields()), recorder.count,
             stepper.step_size, stepper.probe_step, stepper.options.rtol, stepper.options.atol,
@@ -155,9 +155,10 @@ class CompiledStages:
                     stepper.step_size, stepper.arclength, stepper.accepted, stepper.rejected, stepper.located,
                     stages.force_controlled, control_rows(stages), stages.lam_end,
                     stages.target_sign, stages.orientation, stages.reference, secondary_state,
-                    stepper.branch_size, stepper.over_length, stages.cycles_done, int(stepper.turns.turns[k]), int(stepper.turns.first[k]),
+                    stepper.branch_size, stepper.over_length, stepper.over_degenerate, stepper.degenerate_length,
+                    stages.cycles_done, int(stepper.turns.turns[k]), int(stepper.turns.first[k]),
                     turn_closed, turn_values,
-                    self.law, self.parameters, self.cos0, self.sin0, stepper.stop_table[k], stepper.break_columns,
+                    self.law, self.parameters, self.geometry, stepper.stop_table[k], stepper.break_columns,
                     event_columns,
                     found, values, stage, int(k), tuple(recorder.arrays[name] for name in fields),
                     recorder.count, self.code, self.detail, stepper.options.rtol, stepper.options.atol,

@@ -12,43 +12,31 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ncstab.paths.compiled import (
-    _EXTENDED,
-    _N_COLUMNS,
-    _POWER,
-    _STAGES,
-    BREAK_ALWAYS,
-    Outcome,
-    StageLoop,
-)
+from ncstab.paths.compiled import _EXTENDED, _POWER, _STAGES, Outcome, StageLoop
 from ncstab.paths.contacts import ENTRY_NOISE, ENTRY_PROBE
-from ncstab.paths.events import CYCLE_COLUMN, INDICATOR_EVENTS, INDICATOR_GAP, TARGET_COLUMN
 
 __all__ = ["cases_part"]
 
 
 def cases_part(
-    rate_form, M, admissible_at, angle, branch_size, dense_coefficients, dense_value, domain_detail, dop853,
-    drop_limit_at_bifurcation, first_column, indicators, initial_step_size, last_admissible, locate, motion,
-    motion_product, n_columns, next_over_length, njit, over_step, piece_count, project, rhs, sign, state_slot,
-    store_event, store_record, target_column,
+    rate_form, admissible_at, aux_size, branch_size, column_count, control_col, cuts_always, cycle_col,
+    dense_coefficients, dense_value, domain_detail, dop853, drop_limit_at_bifurcation, ev_size, first_column,
+    indicators, initial_step_size, last_admissible, locate, motion, motion_product, motion_size,
+    next_degenerate_length, next_over_length, over_step, piece_count, project, rhs, set_reference, set_state,
+    sign, state_size, store_event, store_record, switch_bit, target_col, tries_degenerate, turn_record,
 ) -> StageLoop:
     """Define ``run_cases`` and ``start`` and return them (a template: see the module docstring)."""
-    cycle_column = CYCLE_COLUMN
     entry_probe, entry_noise = ENTRY_PROBE, ENTRY_NOISE
-    cut_always = np.array([c in (TARGET_COLUMN, CYCLE_COLUMN) or BREAK_ALWAYS[c] for c in range(_N_COLUMNS)])
-    switch_bits = np.array(INDICATOR_GAP, dtype=np.int64)
     Outcome_PAUSED, Outcome_TARGET, Outcome_STOPPED = Outcome.PAUSED, Outcome.TARGET, Outcome.STOPPED
     Outcome_STEP_SIZE_UNDERFLOW, Outcome_LEFT_DOMAIN = Outcome.STEP_SIZE_UNDERFLOW, Outcome.LEFT_DOMAIN
     Outcome_MAX_STEPS, Outcome_SINGULAR_BRANCH = Outcome.MAX_STEPS, Outcome.SINGULAR_BRANCH
-    control_column = INDICATOR_EVENTS.index("controllability_loss")
 
     @numba.njit(cache=False, error_model="numpy", nogil=True)
     def run_cases(cases, y, derivative, indicator_table, step_size, arclength, accepted, rejected, located,
                   force_controlled, control_rows, lam_end, target_sign, orientation, reference, secondary_state,
-                  branch_sizes, over_length, cycles_done, turns, first_turn, turn_closed, turn_values,
-                  law, parameters, cos0, sin0, stop_row, break_row, event_columns, event_found, event_values, event_stage,
-                  stage_number, recorded, record_count, code, detail, rtol, atol, newton_tol,
+                  branch_sizes, over_length, over_degenerate, degenerate_length, cycles_done, turns, first_turn,
+                  turn_closed, turn_values, law, parameters, geometry, stop_row, break_row, event_columns, event_found,
+                  event_values, event_stage, stage_number, recorded, record_count, code, detail, rtol, atol, newton_tol,
                   newton_max_iter, min_step, max_step, max_steps, event_tol, sample_step, max_pieces):
         """Run cases ``cases`` through their current stage (linear or cycle), one after the
         other; see :class:`Outcome`.  ``control_rows``: each case's control path (see
@@ -63,7 +51,13 @@ def cases_part(
         (the loop releases the GIL: :mod:`ncstab.paths.compiled_stages` runs
         shares of the cases on Python threads side by side).
         """
+        if cases.size == 0:
+            return
         capacity = recorded[0].shape[1]
+        first = geometry[cases[0]]  # (the sizes are those of every case)
+        M = state_size(y[cases[0]])
+        n_columns, n_motion = column_count(first), motion_size(first)
+        target_column, cycle_column, control_column = target_col(first), cycle_col(first), control_col(first)
         stages = np.empty((_EXTENDED, M))
         y0 = np.empty(M)
         y_raw = np.empty(M)
@@ -72,12 +66,12 @@ def cases_part(
         work = np.empty((3, M))
         coefficients = np.empty((_POWER, M))
         located_states = np.empty((n_columns, M))
-        ev = np.empty(17)
-        aux = np.empty(11)
-        ev_new = np.empty(17)
-        aux_new = np.empty(11)
-        orient = np.empty(6)  # the orientation, then the reference (the motion at the step's start)
-        plain = np.full(6, np.nan)  # the orientation alone (contacts.switch_contacts sets the reference aside)
+        ev = np.empty(ev_size(first))
+        aux = np.empty(aux_size(first))
+        ev_new = np.empty(ev.size)
+        aux_new = np.empty(aux.size)
+        orient = np.empty(1 + n_motion)  # the orientation, then the reference (the motion at the step's start)
+        plain = np.full(1 + n_motion, np.nan)  # the orientation alone (contacts.switch_contacts sets the reference aside)
         values = np.empty(n_columns)
         after = np.empty(n_columns)
         before = np.empty(n_columns)
@@ -85,24 +79,24 @@ def cases_part(
         lower = np.empty(n_columns)
         upper = np.empty(n_columns)
         change = np.zeros(n_columns, dtype=np.bool_)
-        motion_before = np.empty(5)
+        motion_before = np.empty(n_motion)
         samples = np.empty((max(max_pieces - 1, 1), M))  # the pieces' ends inside a step
         y_end = np.empty(M)
         dy_end = np.empty(M)
-        ev_end = np.empty(17)
-        aux_end = np.empty(11)
+        ev_end = np.empty(ev.size)
+        aux_end = np.empty(aux.size)
         y_half = np.empty(M)
         for i in cases:
-            fc0, fc1 = force_controlled[i, 0], force_controlled[i, 1]
+            fc = force_controlled[i]
             ctl = control_rows[i]
             done = cycles_done[i]
             turn_end = 2 * np.pi * (done + 1) if ctl[0] > 0 else np.nan  # events: the cycle column
             p = parameters[i]
             sec = secondary_state[i]
-            p[state_slot] = sec
-            c0, s0 = cos0[i], sin0[i]
+            geo = geometry[i]
+            set_state(p, geo, sec)
             orient[0] = orientation[i]
-            for k in range(5):
+            for k in range(n_motion):
                 orient[1 + k] = reference[i, k]
             code[i] = Outcome_PAUSED
             while record_count[i] + piece_count(max(min(step_size[i], max_step), over_length[i]), sample_step,
@@ -112,20 +106,27 @@ def cases_part(
                     y0[j] = y[i, j]
                 over = False
                 if not rate_form and over_length[i] > 0:  # over_steps.take_over_steps
-                    arc = over_step(over_length[i], y0, derivative[i], fc0, fc1, ctl, orient, law, p, c0, s0,
+                    arc = over_step(over_length[i], y0, derivative[i], fc, ctl, orient, law, p, geo,
                                     newton_tol, newton_max_iter, y_raw, y_new, dy_new, ev_new, aux_new, y_half, ev,
-                                    coefficients)
+                                    coefficients, over_degenerate[i], degenerate_length[i] > 0)
                     over_length[i] = 0.0
+                    over_degenerate[i] = False
+                    if arc < 0:  # aligned, not reversed: a degenerate over step next
+                        over_length[i] = degenerate_length[i]
+                        over_degenerate[i] = True
+                        degenerate_length[i] = 0.0
+                        continue
+                    degenerate_length[i] = 0.0
                     over = arc > 0
                     if over:
                         h = arc
                 if not over:
-                    err = dop853(y0, derivative[i], h, rtol, atol, fc0, fc1, ctl, orient, law, p, c0, s0,
+                    err = dop853(y0, derivative[i], h, rtol, atol, fc, ctl, orient, law, p, geo,
                                  stages, y_raw, work, ev_new, aux_new)
                     for j in range(M):
                         y_new[j] = y_raw[j]
                     if not rate_form and np.isfinite(err) and not project(
-                        y_new, fc0, fc1, ctl, law, p, c0, s0, newton_tol, newton_max_iter, ev_new
+                        y_new, fc, ctl, law, p, geo, newton_tol, newton_max_iter, ev_new
                     ):
                         err = np.inf
                     accept = err <= 1.0
@@ -148,21 +149,21 @@ def cases_part(
                         for j in range(M):
                             dy_new[j] = stages[_STAGES, j]
                     else:
-                        rhs(y_new, fc0, fc1, ctl, orient, law, p, c0, s0, dy_new, ev_new, aux_new)
+                        rhs(y_new, fc, ctl, orient, law, p, geo, dy_new, ev_new, aux_new)
                 # --- the step's pieces (options.sample_step): the ends of all but the
                 # last on the step's interpolant, projected for a total form
                 pieces = piece_count(h, sample_step, max_pieces)
                 have_dense = over  # (an over step has its interpolant already)
                 if pieces > 1:
                     if not have_dense:
-                        dense_coefficients(y0, y_raw, h, fc0, fc1, ctl, orient, law, p, c0, s0, stages,
+                        dense_coefficients(y0, y_raw, h, fc, ctl, orient, law, p, geo, stages,
                                            coefficients, work, ev, aux)
                     have_dense = True
                     projected = True
                     for k in range(pieces - 1):
                         dense_value(y0, coefficients, (k + 1) / pieces, samples[k])
                         if not rate_form and not project(
-                            samples[k], fc0, fc1, ctl, law, p, c0, s0, newton_tol, newton_max_iter, ev
+                            samples[k], fc, ctl, law, p, geo, newton_tol, newton_max_iter, ev
                         ):
                             projected = False
                             break
@@ -180,7 +181,7 @@ def cases_part(
                         end_at = h * piece / pieces
                         for j in range(M):
                             y_end[j] = samples[piece - 1, j]
-                        rhs(y_end, fc0, fc1, ctl, orient, law, p, c0, s0, dy_end, ev_end, aux_end)
+                        rhs(y_end, fc, ctl, orient, law, p, geo, dy_end, ev_end, aux_end)
                     else:  # the step's end, once the pieces before it are done
                         end_at = h
                         for j in range(M):
@@ -190,24 +191,23 @@ def cases_part(
                             ev_end[j] = ev_new[j]
                         for j in range(aux_new.size):
                             aux_end[j] = aux_new[j]
-                    reason = domain_detail(y_end, ev_end)  # --- domain_edge.split_at_the_edge: bisection
+                    reason = domain_detail(y_end, ev_end, geo)  # --- domain_edge.split_at_the_edge: bisection
                     if reason >= 0:
                         if not have_dense:
-                            dense_coefficients(y0, y_raw, h, fc0, fc1, ctl, orient, law, p, c0, s0, stages,
+                            dense_coefficients(y0, y_raw, h, fc, ctl, orient, law, p, geo, stages,
                                                coefficients, work, ev, aux)
                             have_dense = True
-                        lo = last_admissible(offset, end_at, h, y0, coefficients, fc0, fc1, ctl, orient, law, p, c0,
-                                             s0, newton_tol, newton_max_iter, event_tol, work, ev, aux)
+                        lo = last_admissible(offset, end_at, h, y0, coefficients, fc, ctl, orient, law, p, geo,
+                                             newton_tol, newton_max_iter, event_tol, work, ev, aux)
                         if not (lo > offset):  # nothing admissible beyond the piece's start
                             code[i], detail[i], ended = Outcome_LEFT_DOMAIN, reason, True
                             break
-                        admissible_at(lo, h, y0, coefficients, fc0, fc1, ctl, orient, law, p, c0, s0, newton_tol,
+                        admissible_at(lo, h, y0, coefficients, fc, ctl, orient, law, p, geo, newton_tol,
                                       newton_max_iter, y_end, dy_end, ev_end, aux_end)
                         end_at = lo
                     span = end_at - offset
                     # --- _complete: indicators, crossings located, cut, events, commit
-                    indicators(ev_end, aux_end, y_end[2], fc0, fc1, lam_end[i], target_sign[i], turn_end,
-                               sec, after)
+                    indicators(ev_end, aux_end, y_end, fc, ctl, lam_end[i], target_sign[i], turn_end, sec, after)
                     any_change = False
                     for c in range(n_columns):
                         before[c] = indicator_table[i, c]
@@ -224,19 +224,19 @@ def cases_part(
                         for c in range(n_columns):
                             searched = searched or (change[c] and not (c == target_column and exact_target))
                         if searched and not have_dense:
-                            dense_coefficients(y0, y_raw, h, fc0, fc1, ctl, orient, law, p, c0, s0, stages,
+                            dense_coefficients(y0, y_raw, h, fc, ctl, orient, law, p, geo, stages,
                                                coefficients, work, ev, aux)
                             have_dense = True
                         for c in range(n_columns):
                             if not change[c] or (c == target_column and exact_target):
                                 continue
                             sigma[c], lower[c], upper[c] = locate(
-                                c, h, offset, span, before[c], after[c], y0, coefficients, fc0, fc1, ctl,
-                                lam_end[i], target_sign[i], turn_end, orient, sec, law, p, c0, s0,
+                                c, h, offset, span, before[c], after[c], y0, coefficients, fc, ctl,
+                                lam_end[i], target_sign[i], turn_end, orient, sec, law, p, geo,
                                 newton_tol, newton_max_iter, event_tol, ev, aux, values, located_states[c],
                             )
                             located[i] += 1
-                        drop_limit_at_bifurcation(sigma, span)
+                        drop_limit_at_bifurcation(sigma, span, geo)
                         if exact_target:
                             sigma[target_column] = lower[target_column] = upper[target_column] = span
                             for j in range(M):
@@ -245,7 +245,7 @@ def cases_part(
                     cut_column = 0
                     cut_sigma = np.inf
                     for c in range(n_columns):
-                        cutting = change[c] and (stop_row[c] or cut_always[c] or break_row[c])
+                        cutting = change[c] and (stop_row[c] or cuts_always(geo, c) or break_row[c])
                         if cutting and sigma[c] < cut_sigma:
                             cut_sigma = sigma[c]
                             cut_column = c
@@ -255,7 +255,7 @@ def cases_part(
                     for e in range(event_columns.shape[0]):  # _store_first_events
                         c = first_column(event_columns[e], sigma)
                         if c >= 0 and np.isfinite(sigma[c]) and sigma[c] <= reach + event_tol and not event_found[e, i]:
-                            rhs(located_states[c], fc0, fc1, ctl, orient, law, p, c0, s0, work[2], ev, aux)
+                            rhs(located_states[c], fc, ctl, orient, law, p, geo, work[2], ev, aux)
                             event_found[e, i], event_stage[e, i] = True, stage_number
                             store_event(event_values[e, i], arclength[i], sigma[c], lower[c], upper[c], located_states[c],
                                         ev)
@@ -267,12 +267,12 @@ def cases_part(
                         kept = 0.0
                         if switching:  # cut_points.switch_contacts_at (contacts.switch_contacts)
                             plain[0] = orient[0]
-                            rhs(y_end, fc0, fc1, ctl, plain, law, p, c0, s0, work[2], ev, aux)
+                            rhs(y_end, fc, ctl, plain, law, p, geo, work[2], ev, aux)
                             motion(ev, aux, motion_before)
-                            sec = sec ^ switch_bits[cut_column]
-                            p[state_slot] = sec
+                            sec = sec ^ switch_bit(geo, cut_column)
+                            set_state(p, geo, sec)
                             secondary_state[i] = sec
-                            rhs(y_end, fc0, fc1, ctl, plain, law, p, c0, s0, work[2], ev, aux)
+                            rhs(y_end, fc, ctl, plain, law, p, geo, work[2], ev, aux)
                             flip = motion_product(motion_before, ev, aux) < 0  # the motion kept
                             # the new branch into its own side: the crossed indicator's central
                             # difference along the new tangent, where it tells
@@ -280,33 +280,30 @@ def cases_part(
                             for side in (1.0, -1.0):
                                 for j in range(M):
                                     work[0, j] = y_end[j] + side * entry_probe * work[2, j]
-                                rhs(work[0], fc0, fc1, ctl, plain, law, p, c0, s0, work[1], ev, aux)
-                                indicators(ev, aux, work[0, 2], fc0, fc1, lam_end[i], target_sign[i], turn_end,
-                                           sec, values)
+                                rhs(work[0], fc, ctl, plain, law, p, geo, work[1], ev, aux)
+                                indicators(ev, aux, work[0], fc, ctl, lam_end[i], target_sign[i], turn_end, sec,
+                                           values)
                                 rate += side * values[cut_column]
                             if abs(rate) > entry_noise:
-                                own_side = -1.0 if (sec & switch_bits[cut_column]) > 0 else 1.0
+                                own_side = -1.0 if (sec & switch_bit(geo, cut_column)) > 0 else 1.0
                                 flip = rate * own_side < 0
                             if flip:
                                 orient[0] = -orient[0]
                                 orientation[i] = orient[0]
-                            for k in range(5):  # the motion continues from the switch: no reference across it
+                            for k in range(n_motion):  # the motion continues from the switch: no reference across it
                                 orient[1 + k] = np.nan
                             kept = after[cut_column]
-                        rhs(y_end, fc0, fc1, ctl, orient, law, p, c0, s0, dy_end, ev_end, aux_end)
+                        rhs(y_end, fc, ctl, orient, law, p, geo, dy_end, ev_end, aux_end)
                         closes_turn = cut_column == cycle_column or cut_column == target_column
                         if ctl[0] > 0 and closes_turn and done < turns:  # cut_points.close_turns: W, F, T where it closes
                             slot = first_turn + done
                             turn_closed[i, slot] = True
-                            turn_values[i, slot, 0] = y_end[M - 1]
-                            turn_values[i, slot, 1] = ev_end[4]
-                            turn_values[i, slot, 2] = ev_end[5]
-                            turn_values[i, slot, 3] = ev_end[3]
+                            turn_record(y_end, ev_end, turn_values[i, slot])
                             done += 1
                             cycles_done[i] = done
                             turn_end = 2 * np.pi * (done + 1)
-                        indicators(ev_end, aux_end, y_end[2], fc0, fc1, lam_end[i], target_sign[i], turn_end,
-                                   sec, after)
+                        indicators(ev_end, aux_end, y_end, fc, ctl, lam_end[i], target_sign[i], turn_end, sec,
+                                   after)
                         if switching:  # the post-crossing sign, so the crossing is not found twice
                             after[cut_column] = kept
                     # _commit
@@ -317,14 +314,14 @@ def cases_part(
                     if piece == 1:
                         accepted[i] += 1
                     size = branch_size(aux_end, orient)  # stepper._commit: the next over step
-                    if not rate_form:
+                    if not rate_form:  # over_steps.plan_over_steps
                         over_length[i] = next_over_length(branch_sizes[i], size, reach, newton_tol)
+                        if tries_degenerate(geo):
+                            degenerate = next_degenerate_length(branch_sizes[i], size, reach)
+                            degenerate_length[i] = degenerate if over_length[i] > 0 else 0.0
                     branch_sizes[i] = size
-                    # stepper._commit: the reference of the next piece, the motion (du, dF, dlambda)
-                    orient[1], orient[2], orient[3], orient[4], orient[5] = (
-                        aux_end[2], aux_end[3], aux_end[6], aux_end[7], aux_end[4]
-                    )
-                    for k in range(5):
+                    set_reference(aux_end, orient)  # stepper._commit: the motion at the next piece's start
+                    for k in range(n_motion):
                         reference[i, k] = orient[1 + k]
                     for c in range(n_columns):  # events.signs_kept: a value without a sign keeps the last
                         if after[c] != 0 or c == target_column:
@@ -363,34 +360,38 @@ def cases_part(
 
     @numba.njit(cache=False, error_model="numpy")
     def start(cases, y, derivative, indicator_table, arclength, force_controlled, control_rows, lam_end,
-              target_sign, orientation, reference, secondary_state, cycles_done, law, parameters, cos0, sin0,
+              target_sign, orientation, reference, secondary_state, cycles_done, law, parameters, geometry,
               stage_number, recorded, record_count, step_size, probe, rtol, atol):
         """Cases ``cases`` start their (set up) stage: dy/ds, indicators, state stored
         (stage_entry._start_stage); the first step where ``step_size`` is NaN
         (stage_entry._estimate_first_steps)."""
+        if cases.size == 0:
+            return
+        first = geometry[cases[0]]
+        M, n_motion = state_size(y[cases[0]]), motion_size(first)
         state = np.empty(M)
-        ev = np.empty(17)
-        aux = np.empty(11)
+        ev = np.empty(ev_size(first))
+        aux = np.empty(aux_size(first))
         f1 = np.empty(M)
-        orient = np.empty(6)
+        orient = np.empty(1 + n_motion)
         for i in cases:
             orient[0] = orientation[i]
-            for k in range(5):
+            for k in range(n_motion):
                 orient[1 + k] = reference[i, k]
             for j in range(M):
                 state[j] = y[i, j]
-            fc0, fc1, ctl = force_controlled[i, 0], force_controlled[i, 1], control_rows[i]
+            fc, ctl, geo = force_controlled[i], control_rows[i], geometry[i]
             turn_end = 2 * np.pi * (cycles_done[i] + 1) if ctl[0] > 0 else np.nan
-            parameters[i, state_slot] = secondary_state[i]
-            rhs(state, fc0, fc1, ctl, orient, law, parameters[i], cos0[i], sin0[i], derivative[i], ev, aux)
-            indicators(ev, aux, state[2], fc0, fc1, lam_end[i], target_sign[i], turn_end, secondary_state[i],
+            set_state(parameters[i], geo, secondary_state[i])
+            rhs(state, fc, ctl, orient, law, parameters[i], geo, derivative[i], ev, aux)
+            indicators(ev, aux, state, fc, ctl, lam_end[i], target_sign[i], turn_end, secondary_state[i],
                        indicator_table[i])
             store_record(recorded, i, record_count[i], arclength[i], stage_number, state, ev, aux)
             record_count[i] += 1
             if np.isnan(step_size[i]):
                 for j in range(M):
                     state[j] = y[i, j] + probe * derivative[i, j]
-                rhs(state, fc0, fc1, ctl, orient, law, parameters[i], cos0[i], sin0[i], f1, ev, aux)
+                rhs(state, fc, ctl, orient, law, parameters[i], geo, f1, ev, aux)
                 step_size[i] = initial_step_size(y[i], derivative[i], f1, probe, rtol, atol)
 
     return StageLoop(run_cases, start)

@@ -40,20 +40,21 @@ def model_part(rate_form: bool) -> None:
     hot = numba.njit(cache=False, error_model="numpy", inline="always")
     sign_noise, tiny = SIGN_NOISE, TINY
     N_INT = 1 if rate_form else 0  # internal variables: T for a rate form (one contact family)
-    M = 4 + N_INT  # noqa: F841 (y = (v0, v1, lambda, [T], W); read by parts 2 and 3)
+    M = 4 + N_INT  # noqa: F841 (y = (v0, v1, lambda, [T], W); read by the parts after this one)
     # The case's row p: kappa, whether the secondary springs act, the contact-state
     # bits, whether the law reads alpha, then the law's parameters (KAPPA_SLOT, ...).
     kappa_slot, activate_slot, state_slot, alpha_slot = KAPPA_SLOT, ACTIVATE_SLOT, STATE_SLOT, ALPHA_SLOT
 
     @hot
-    def evaluate(v0, v1, t_in, law, p, cos0, sin0, ev):
+    def evaluate(y, ctl, law, p, geo, ev):
         # model.CaseBatch._evaluate_fused: ev = (l, alpha, N, T, F0, F1, K00, K01, K10, K11,
         # dT/dD1, dT/dD2, gap0, gap1, vertical, horizontal, delta); alpha only where the law
         # reads it (else NaN here, see angle()); the law writes ev[2:12] (its branch: the
         # normal contact's bit of the contact state) and delta, its normal overlap (NaN
-        # unless it is a no_tension law)
-        vertical = cos0 - v0
-        horizontal = sin0 - v1
+        # unless it is a no_tension law); geo = (cos alpha0, sin alpha0)
+        t_in = y[3] if N_INT else 0.0
+        vertical = geo[0] - y[0]
+        horizontal = geo[1] - y[1]
         length = np.sqrt(vertical * vertical + horizontal * horizontal)
         alpha = np.arctan2(horizontal, vertical) if p[alpha_slot] > 0 else np.nan
         law(length, alpha, vertical / length, horizontal / length, t_in, p.ctypes, ev.ctypes)  # ev[2:12], ev[16]
@@ -155,12 +156,11 @@ def model_part(rate_form: bool) -> None:
             return ctl[5] + ctl[7] * cos, ctl[6] + ctl[7] * sin, rate * -sin, rate * cos
         return ctl[1] + ctl[3] * lam, ctl[2] + ctl[4] * lam, ctl[3], ctl[4]
 
-    def rhs_py(y, fc0, fc1, ctl, orient, law, p, cos0, sin0, dy, ev, aux):
+    def rhs_py(y, fc, ctl, orient, law, p, geo, dy, ev, aux):
         # rhs.state_derivative: dy/ds = (dv, dlambda, dinternal, dW)
-        t_in = y[3] if N_INT else 0.0
-        evaluate(y[0], y[1], t_in, law, p, cos0, sin0, ev)
+        evaluate(y, ctl, law, p, geo, ev)
         _, _, g0, g1 = control(y[2], ctl)
-        tangent(ev, fc0, fc1, g0, g1, orient, aux)
+        tangent(ev, fc[0], fc[1], g0, g1, orient, aux)
         dy[0] = aux[0]
         dy[1] = aux[1]
         dy[2] = aux[4]
@@ -214,8 +214,9 @@ def model_part(rate_form: bool) -> None:
         return 0.0 if abs(value) <= sign_noise * size else value
 
     @njit
-    def indicators(ev, aux, lam, fc0, fc1, lam_end, target_sign, turn_end, secondary, out):
+    def indicators(ev, aux, y, fc, ctl, lam_end, target_sign, turn_end, secondary, out):
         # events.indicator_values; turn_end: 2 pi (turns done + 1) in a cycle stage, else NaN
+        lam, fc0, fc1 = y[2], fc[0], fc[1]
         k00, k01, k10, k11 = ev[6], ev[7], ev[8], ev[9]
         m00 = k00 if fc0 else 1.0
         m01 = k01 if fc0 else 0.0

@@ -24,39 +24,26 @@ from ncstab.paths.over_steps import OVER_ALIGNMENT, OVER_MARGIN
 __all__ = ["limits_part"]
 
 
-def limits_part(M, N_INT, alignment, angle, dense_value, evaluate, njit, project, rate_form, rhs) -> None:
+def limits_part(
+    alignment, arc_through, dense_value, domain_detail, njit, project, rate_form, rhs, state_size, was_flipped,
+) -> None:
     """Define the helpers of the domain's edge and of over steps (a template: see the module docstring)."""
     over_alignment, over_margin, edge_halvings = OVER_ALIGNMENT, OVER_MARGIN, EDGE_HALVINGS
 
     @njit
-    def domain_detail(state, ev_state):
-        # domain_edge.domain_codes, one state: -1 inside the domain, else the index of the reason
-        # in model.DOMAIN_REASONS (0 non-finite numbers, 1 l* <= 0, 2 |alpha| >= pi/2)
-        finite = np.isfinite(ev_state[4]) and np.isfinite(ev_state[5])
-        for j in range(M):
-            finite = finite and np.isfinite(state[j])
-        if not finite:
-            return 0
-        if not (ev_state[0] > 0):
-            return 1
-        if not (abs(angle(ev_state)) < 0.5 * np.pi):
-            return 2
-        return -1
-
-    @njit
-    def admissible_at(sigma, h, y0, coefficients, fc0, fc1, ctl, orient, law, p, c0, s0, newton_tol,
+    def admissible_at(sigma, h, y0, coefficients, fc, ctl, orient, law, p, geo, newton_tol,
                       newton_max_iter, state, dy, ev, aux):
         # domain_edge._admissible_at, one case: the state at sigma along its step (projected for a
         # total form) into state, with dy/ds, ev and aux there; whether it is admissible
         dense_value(y0, coefficients, sigma / h, state)
         admissible = True
         if not rate_form:
-            admissible = project(state, fc0, fc1, ctl, law, p, c0, s0, newton_tol, newton_max_iter, ev)
-        rhs(state, fc0, fc1, ctl, orient, law, p, c0, s0, dy, ev, aux)
-        return admissible and domain_detail(state, ev) < 0
+            admissible = project(state, fc, ctl, law, p, geo, newton_tol, newton_max_iter, ev)
+        rhs(state, fc, ctl, orient, law, p, geo, dy, ev, aux)
+        return admissible and domain_detail(state, ev, geo) < 0
 
     @njit
-    def last_admissible(offset, end_at, h, y0, coefficients, fc0, fc1, ctl, orient, law, p, c0, s0, newton_tol,
+    def last_admissible(offset, end_at, h, y0, coefficients, fc, ctl, orient, law, p, geo, newton_tol,
                         newton_max_iter, event_tol, work, ev, aux):
         # domain_edge._last_admissible, one case: the last admissible state's place in the
         # piece (offset, end_at) of the step, by bisection to event_tol
@@ -65,7 +52,7 @@ def limits_part(M, N_INT, alignment, angle, dense_value, evaluate, njit, project
             if not (hi - lo > event_tol):
                 break
             mid = 0.5 * (lo + hi)
-            if admissible_at(mid, h, y0, coefficients, fc0, fc1, ctl, orient, law, p, c0, s0, newton_tol,
+            if admissible_at(mid, h, y0, coefficients, fc, ctl, orient, law, p, geo, newton_tol,
                              newton_max_iter, work[0], work[1], ev, aux):
                 lo = mid
             else:
@@ -80,40 +67,51 @@ def limits_part(M, N_INT, alignment, angle, dense_value, evaluate, njit, project
         return 2.0 * ahead if tried and ahead <= over_margin * np.sqrt(newton_tol) else 0.0
 
     @njit
-    def over_step(length, y0, rate, fc0, fc1, ctl, orient, law, p, cos0, sin0, newton_tol, newton_max_iter,
-                  y_raw, y_new, dy_new, ev_new, aux_new, y_half, ev, coefficients):
+    def next_degenerate_length(size_before, size_after, reach):
+        # over_steps.next_degenerate_steps, one case: the degenerate over step's length (0: none),
+        # twice the distance at which sqrt of the branch test's size extrapolates to zero
+        before, after = np.sqrt(size_before), np.sqrt(size_after)
+        ahead = reach * after / (before - after)
+        tried = before > after > 0 and reach > 0 and ahead <= np.inf
+        return 2.0 * ahead if tried else 0.0
+
+    @njit
+    def over_step(length, y0, rate, fc, ctl, orient, law, p, geo, newton_tol, newton_max_iter,
+                  y_raw, y_new, dy_new, ev_new, aux_new, y_half, ev, coefficients, degenerate, can_retry):
         # over_steps.take_over_steps, one case: the predictor's end y0 + length dy/ds projected
-        # (y_new, with dy_new, ev_new, aux_new there) and the arclength of the step (arc_length),
-        # or 0.0 where it crossed no simple bifurcation point (nothing is kept then); the step's
-        # interpolant in coefficients (over_steps.over_interpolant: y0 + sigma(f) dy/ds)
-        for j in range(M):
+        # (y_new, with dy_new, ev_new, aux_new there) and the arclength of the step (arc_length)
+        # where it is kept: it crossed a simple bifurcation point (the cofactor vector reversed,
+        # the tangent within OVER_ALIGNMENT of the one it left), or, tried as ``degenerate``, a
+        # degenerate point (aligned, not reversed).  Else 0.0 (nothing is kept), or -1.0 where
+        # a degenerate over step is to follow (``can_retry``: aligned, not reversed, not
+        # degenerate).  The step's interpolant in coefficients (over_steps.over_interpolant:
+        # y0 + sigma(f) dy/ds)
+        m = state_size(y0)
+        for j in range(m):
             y_raw[j] = y0[j] + length * rate[j]
             y_new[j] = y_raw[j]
-        if not project(y_new, fc0, fc1, ctl, law, p, cos0, sin0, newton_tol, newton_max_iter, ev_new):
+        if not project(y_new, fc, ctl, law, p, geo, newton_tol, newton_max_iter, ev_new):
             return 0.0
-        rhs(y_new, fc0, fc1, ctl, orient, law, p, cos0, sin0, dy_new, ev_new, aux_new)
-        if not (aux_new[9] > 0 and alignment(aux_new, orient) > over_alignment):
+        rhs(y_new, fc, ctl, orient, law, p, geo, dy_new, ev_new, aux_new)
+        if not alignment(aux_new, orient) > over_alignment:
             return 0.0
         half = 0.5 * length
-        for j in range(M):
+        for j in range(m):
             y_half[j] = y0[j] + half * rate[j]
-        if not project(y_half, fc0, fc1, ctl, law, p, cos0, sin0, newton_tol, newton_max_iter, ev):
+        if was_flipped(aux_new) == degenerate:  # no reversal at a simple point, or one at a degenerate point
+            if degenerate or not can_retry:
+                return 0.0
+            converged = project(y_half, fc, ctl, law, p, geo, newton_tol, newton_max_iter, ev)
+            return -1.0 if converged else 0.0
+        if not project(y_half, fc, ctl, law, p, geo, newton_tol, newton_max_iter, ev):
             return 0.0
-        h0, h1 = ev[4], ev[5]  # F at the middle, then at the start
-        evaluate(y0[0], y0[1], y0[3] if N_INT else 0.0, law, p, cos0, sin0, ev)
-        a0, a1, a2, a3, a4 = y_half[0] - y0[0], y_half[1] - y0[1], h0 - ev[4], h1 - ev[5], y_half[2] - y0[2]
-        b0, b1, b2, b3, b4 = y_new[0] - y_half[0], y_new[1] - y_half[1], ev_new[4] - h0, ev_new[5] - h1, y_new[2] - y_half[2]
-        c0, c1, c2, c3, c4 = y_new[0] - y0[0], y_new[1] - y0[1], ev_new[4] - ev[4], ev_new[5] - ev[5], y_new[2] - y0[2]
-        whole = np.sqrt(c0 * c0 + c1 * c1 + c2 * c2 + c3 * c3 + c4 * c4)
-        halves = np.sqrt(a0 * a0 + a1 * a1 + a2 * a2 + a3 * a3 + a4 * a4)
-        halves += np.sqrt(b0 * b0 + b1 * b1 + b2 * b2 + b3 * b3 + b4 * b4)
-        arc = (4.0 * halves - whole) / 3.0
+        arc = arc_through(y0, y_half, y_new, ev_new, ctl, law, p, geo, ev)
         if not arc > 0:
             return 0.0
         for k in range(coefficients.shape[0]):
-            for j in range(M):
+            for j in range(m):
                 coefficients[k, j] = 0.0
-        for j in range(M):
+        for j in range(m):
             coefficients[0, j] = length * rate[j]
             coefficients[1, j] = (arc - length) * rate[j]
         return arc
