@@ -100,6 +100,9 @@ def pytest_unconfigure(config: pytest.Config) -> None:
 #: its kernel (their ``no_tension`` variants compile their own kernels, in a
 #: second, where a test first follows them).
 WARM_LAWS = ("cundall_strack", "weakly_hypoelastic", "mcnamara", "turco")
+#: The general models' loops (one per form, :mod:`ncstab.paths.loop_general`), warmed by a
+#: column of four links (three dofs, a total form) and a ring of four grains (a rate law).
+WARM_GENERAL = ("general-total", "general-rate")
 #: Seconds a warm-up process may take (a form's loop compiles in about 30 s on one core).
 WARM_TIMEOUT = 900
 #: Compiles the loop of each law named on the command line, through the public path.
@@ -108,9 +111,17 @@ import sys
 from ncstab.paths import PathOptions, SystemSpec, follow
 
 for law in sys.argv[1:]:
-    programme = [{"hold": {"F2": 0.0}, "drive": {"D1": 0.01}}]
     options = PathOptions(backend="compiled", max_step=1.0)
-    path = follow(SystemSpec(secondary_contacts="ignore"), law, programme, {"gamma": 1.0}, options)
+    if law == "general-total":
+        programme = [{"hold": {"F2": 0.0, "F3": 0.0}, "drive": {"F1": 1e-3}}]
+        path = follow(SystemSpec("column", links=4), None, programme, {}, options)
+    elif law == "general-rate":
+        programme = [{"hold": {"F2": 0.0, "F4": 0.0}, "drive": {"D1": 0.01, "D3": 0.01}}]
+        path = follow(SystemSpec("ring", grains=4, secondary_contacts="ignore"), "cundall_strack", programme,
+                      {"gamma": 1.0}, options)
+    else:
+        programme = [{"hold": {"F2": 0.0}, "drive": {"D1": 0.01}}]
+        path = follow(SystemSpec(secondary_contacts="ignore"), law, programme, {"gamma": 1.0}, options)
     engine = path.results[0].engine
     if not engine.startswith("compiled stepper"):
         sys.exit(f"{law} did not run on the compiled stepper: {engine}")
@@ -133,7 +144,8 @@ def _by_form(laws: tuple[str, ...], processes: int) -> list[tuple[str, ...]]:
 
     forms: dict[bool, list[str]] = {}
     for law in laws:
-        forms.setdefault(law_definition(law).has_total_form, []).append(law)
+        total = law == "general-total" if law.startswith("general-") else law_definition(law).has_total_form
+        forms.setdefault(total, []).append(law)
     groups: list[list[str]] = [[] for _ in range(max(1, min(processes, len(forms))))]
     for k, members in enumerate(forms.values()):
         groups[k % len(groups)].extend(members)
@@ -182,16 +194,16 @@ def pytest_sessionstart(session: pytest.Session) -> None:
     processes = max(1, min(len(WARM_LAWS), os.cpu_count() or 1))
     reporter = config.pluginmanager.get_plugin("terminalreporter")
     if reporter is not None:
-        reporter.write_line(f"warming the compiled loops of {len(WARM_LAWS)} laws in {processes} processes "
+        reporter.write_line(f"warming the compiled loops of {len(WARM_LAWS)} laws and of the general models in {processes} processes "
                             "(NCSTAB_TEST_WARM=0 skips it) ...")
     start = time.perf_counter()
     try:
-        warm_compiled_loops(WARM_LAWS, processes)
+        warm_compiled_loops(WARM_LAWS + WARM_GENERAL, processes)
     except (OSError, RuntimeError, subprocess.SubprocessError) as error:  # the tests run anyway
         line = (f"warming the compiled loops failed ({type(error).__name__}: {error}); "
                 "tests compile those they need")
     else:
-        line = (f"warmed the compiled loops of {len(WARM_LAWS)} laws in {time.perf_counter() - start:.1f} s "
+        line = (f"warmed the compiled loops of {len(WARM_LAWS)} laws and of the general models in {time.perf_counter() - start:.1f} s "
                 f"into {directory}")
     config.stash[_WARMED] = line
     if reporter is not None and (config.get_verbosity() < 0 or config.option.no_header):  # no header

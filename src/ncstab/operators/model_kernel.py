@@ -29,7 +29,7 @@ import numpy as np
 import sympy as sp
 
 from ncstab.operators import model_assembly, model_kernel_source
-from ncstab.operators.model_kernel_source import KernelLayout, kernel_source
+from ncstab.operators.model_kernel_source import KERNEL_SIGNATURE, KernelLayout, kernel_source
 from ncstab.systems.definition import SystemDefinition
 
 __all__ = ["KernelLayout", "ModelKernel", "kernel_name", "kernel_source", "model_kernel"]
@@ -97,6 +97,16 @@ class ModelKernel:
             out,
         )
         return out
+
+    @functools.cached_property
+    def callback(self) -> Any:
+        """``case`` of the module as a C callback of :data:`KERNEL_SIGNATURE` (compiled once per
+        model and machine, cached beside the module): the compiled stage loop's ``law``."""
+        try:
+            return numba.cfunc(KERNEL_SIGNATURE, cache=True, error_model="numpy")(self.module.case)
+        except numba.core.errors.NumbaError as error:
+            first = str(error).strip().splitlines()[0]
+            raise ValueError(f"system {self.definition.name!r}: numba cannot compile its kernel: {first}") from None
 
     def _compiled_batch(self) -> Any:
         """``evaluate_batch``, compiled (a numba error becomes a ValueError naming the system)."""

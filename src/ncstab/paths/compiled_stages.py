@@ -94,6 +94,20 @@ class CompiledStages:
         self.geometry = np.column_stack([np.broadcast_to(cos0, (size,)), np.broadcast_to(sin0, (size,))]).astype(float)
         self.code = np.zeros(size, dtype=np.int64)
         self.detail = np.zeros(size, dtype=np.int64)
+        #: Width of a located event's row (:func:`ncstab.paths.loop_diamond` ``store_event``).
+        self.event_width = len(EVENT_FIELDS)
+
+    def control_rows(self, stages: Any) -> np.ndarray:
+        """Each case's control path as the loop's model part reads it."""
+        return control_rows(stages)
+
+    def recorded(self, stepper: BatchStepper) -> tuple:
+        """The arrays the loop's ``store_record`` writes: the recorder's, in the order of
+        ``stepper.record_fields()``."""
+        return tuple(stepper.recorder.arrays[name] for name in stepper.record_fields())
+
+    def after_call(self, stepper: BatchStepper, cases: np.ndarray, count_before: np.ndarray) -> None:
+        """What the states a call stored still need (nothing: the diamond's loop stores every field)."""
 
     def start(self, stepper: BatchStepper, cases: np.ndarray) -> None:
         """Cases ``cases`` start their (set up) stage: dy/ds, indicators and the state stored;
@@ -102,15 +116,17 @@ class CompiledStages:
         recorder.create(stepper.record_fields())
         recorder.reserve(int(recorder.count[cases].max()) + 1 if cases.size else 0)
         stages = stepper.stages
+        count_before = recorder.count[cases].copy()
         self.starter(
             cases.astype(np.int64), stepper.y, stepper.derivative, stepper.indicators, stepper.arclength,
-            stages.force_controlled, control_rows(stages), stages.lam_end, stages.target_sign, stages.orientation,
+            stages.force_controlled, self.control_rows(stages), stages.lam_end, stages.target_sign, stages.orientation,
             stages.reference, np.ascontiguousarray(stages.secondary_state, dtype=np.int64), stages.cycles_done,
             self.law, self.parameters, self.geometry,
             stepper.stage_index[cases[0]] if cases.size else 0,
-            tuple(recorder.arrays[name] for name in stepper.record_fields()), recorder.count,
+            self.recorded(stepper), recorder.count,
             stepper.step_size, stepper.probe_step, stepper.options.rtol, stepper.options.atol,
         )
+        self.after_call(stepper, cases, count_before)
         cycling = cases[stages.is_cycle[cases]]
         if cycling.size:  # stage_entry._start_stage: a turn starts (W, F and T there)
             from ncstab.paths.rhs import evaluate_at
@@ -122,14 +138,13 @@ class CompiledStages:
         """Run every running case of ``stepper`` to its end, stage by stage."""
         from ncstab.paths.status import RUNNING
 
-        fields = tuple(stepper.record_fields())
         size = stepper.size
         columns = max(len(c) for c in stepper.event_column.values())
         event_columns = np.full((len(EVENTS), columns), -1, dtype=np.int64)
         for e, name in enumerate(EVENTS):
             event_columns[e, : len(stepper.event_column[name])] = stepper.event_column[name]
         found = np.ascontiguousarray(np.stack([stepper.events[name]["found"] for name in EVENTS]))
-        values = np.empty((len(EVENTS), size, len(EVENT_FIELDS)))  # read where found only
+        values = np.empty((len(EVENTS), size, self.event_width))  # read where found only
         stage = np.stack([stepper.events[name]["stage"] for name in EVENTS]).astype(np.int64)
         n_turns = int(stepper.turns.turns.sum())
         turn_closed = np.zeros((size, n_turns), dtype=bool)
@@ -153,20 +168,21 @@ class CompiledStages:
                 arguments = (
                     stepper.y, stepper.derivative, stepper.indicators,
                     stepper.step_size, stepper.arclength, stepper.accepted, stepper.rejected, stepper.located,
-                    stages.force_controlled, control_rows(stages), stages.lam_end,
+                    stages.force_controlled, self.control_rows(stages), stages.lam_end,
                     stages.target_sign, stages.orientation, stages.reference, secondary_state,
                     stepper.branch_size, stepper.over_length, stepper.over_degenerate, stepper.degenerate_length,
                     stages.cycles_done, int(stepper.turns.turns[k]), int(stepper.turns.first[k]),
                     turn_closed, turn_values,
                     self.law, self.parameters, self.geometry, stepper.stop_table[k], stepper.break_columns,
                     event_columns,
-                    found, values, stage, int(k), tuple(recorder.arrays[name] for name in fields),
+                    found, values, stage, int(k), self.recorded(stepper),
                     recorder.count, self.code, self.detail, stepper.options.rtol, stepper.options.atol,
                     stepper.options.newton_tol, stepper.options.newton_max_iter,
                     stepper.options.min_step, stepper.options.max_step, stepper.options.max_steps,
                     stepper.options.event_tol, stepper.options.stored_spacing, stepper.options.max_pieces,
                 )
                 self._run_shared(cases.astype(np.int64), arguments)
+                self.after_call(stepper, cases, count_before)
                 self._close_turns(stepper, int(k), turn_closed, turn_values)
                 self._reserve_for_the_rest(stepper, cases, lam_before, count_before)
                 self._fail_beyond_the_limit(stepper, cases)
@@ -250,21 +266,18 @@ class CompiledStages:
 
     def _end(self, stepper: BatchStepper, cases: np.ndarray) -> None:
         """Do what each case's outcome asks (the numpy stepper's texts and statuses)."""
-        from ncstab.paths.model import DOMAIN_REASONS
-
         code, detail = self.code[cases], self.detail[cases]
         stopped = code == Outcome.STOPPED
         stepper.stop(cases[stopped], detail[stopped])
         stepper.fail_step_size_underflow(cases[code == Outcome.STEP_SIZE_UNDERFLOW])
         outside = code == Outcome.LEFT_DOMAIN
-        stepper.fail_outside_domain(cases[outside], np.asarray(DOMAIN_REASONS)[detail[outside]])
+        stepper.fail_outside_domain(cases[outside], np.asarray(stepper.batch.domain_reasons)[detail[outside]])
         stepper.fail_max_steps(cases[code == Outcome.MAX_STEPS])
         stepper.fail_singular_branch(cases[code == Outcome.SINGULAR_BRANCH])
         stepper.enter_next_stage(cases[code == Outcome.TARGET])
 
-    @staticmethod
     def _store_events(
-        stepper: BatchStepper, found: np.ndarray, values: np.ndarray, stage: np.ndarray
+        self, stepper: BatchStepper, found: np.ndarray, values: np.ndarray, stage: np.ndarray
     ) -> None:
         """Copy the first events the loop located into the stepper's event tables."""
         for e, name in enumerate(EVENTS):
@@ -272,12 +285,16 @@ class CompiledStages:
             rows = np.flatnonzero(found[e] & ~table["found"])
             if rows.size == 0:
                 continue
-            row_values = values[e, rows]
             table["found"][rows] = True
             table["stage"][rows] = stage[e, rows]
-            for key in ("s", "s_lower", "s_upper", "lam", "l", "alpha", "N", "T"):
-                table[key][rows] = row_values[:, EVENT_FIELDS.index(key)]
-            for key, first in (("u", "u0"), ("F", "F0"), ("K", "K00")):
-                start = EVENT_FIELDS.index(first)
-                shape = table[key].shape[1:]
-                table[key][rows] = row_values[:, start : start + int(np.prod(shape))].reshape((-1, *shape))
+            self.event_fields(stepper, table, rows, values[e, rows])
+
+    @staticmethod
+    def event_fields(stepper: BatchStepper, table: dict, rows: np.ndarray, row_values: np.ndarray) -> None:
+        """An event table's fields at ``rows`` from the loop's event rows (:data:`EVENT_FIELDS`)."""
+        for key in ("s", "s_lower", "s_upper", "lam", "l", "alpha", "N", "T"):
+            table[key][rows] = row_values[:, EVENT_FIELDS.index(key)]
+        for key, first in (("u", "u0"), ("F", "F0"), ("K", "K00")):
+            start = EVENT_FIELDS.index(first)
+            shape = table[key].shape[1:]
+            table[key][rows] = row_values[:, start : start + int(np.prod(shape))].reshape((-1, *shape))

@@ -37,6 +37,10 @@ def choose_engine(
         if asked:
             compiled.stage_runner(batch)  # raises, naming what to install
         return None, f"{NUMPY_ENGINE} (numba is not installed)"
+    from ncstab.paths.model_batch import ModelBatch
+
+    if isinstance(batch, ModelBatch):
+        return _general_engine(batch, programme, asked)
     reason = compiled.unsupported_reason(batch, programme)
     if reason is not None:
         because = "backend = 'compiled' asked" if asked else "the compiled stepper does not cover this"
@@ -45,3 +49,21 @@ def choose_engine(
 
     engine = f"compiled stepper (numba {compiled.numba.__version__}), numpy stepper for what it leaves"
     return CompiledStages(batch, compiled.stage_runner(batch)), engine
+
+
+def _general_engine(batch: Any, programme: LoadingProgramme, asked: bool) -> tuple[CompiledStages | None, str]:
+    """The compiled loop of a general model where it applies, and the engine in words."""
+    from ncstab.paths import compiled
+    from ncstab.paths.compiled_general import (
+        GeneralStages,
+        general_runner,
+        general_unsupported_reason,
+    )
+
+    kernel = f"compiled model kernels (numba {compiled.numba.__version__})"
+    reason = general_unsupported_reason(batch, programme)
+    if reason is not None:
+        because = "backend = 'compiled' asked" if asked else "the compiled stepper does not cover this"
+        return None, f"{NUMPY_ENGINE}, {kernel} ({because}: {reason})"
+    stages = GeneralStages(batch, general_runner(not batch.has_total_form))
+    return stages, f"compiled stepper (numba {compiled.numba.__version__}) with {kernel}, numpy stepper for what it leaves"

@@ -207,7 +207,7 @@ def cases_part(
                         end_at = lo
                     span = end_at - offset
                     # --- _complete: indicators, crossings located, cut, events, commit
-                    indicators(ev_end, aux_end, y_end, fc, ctl, lam_end[i], target_sign[i], turn_end, sec, after)
+                    indicators(ev_end, aux_end, y_end, fc, ctl, geo, lam_end[i], target_sign[i], turn_end, sec, after)
                     any_change = False
                     for c in range(n_columns):
                         before[c] = indicator_table[i, c]
@@ -258,7 +258,7 @@ def cases_part(
                             rhs(located_states[c], fc, ctl, orient, law, p, geo, work[2], ev, aux)
                             event_found[e, i], event_stage[e, i] = True, stage_number
                             store_event(event_values[e, i], arclength[i], sigma[c], lower[c], upper[c], located_states[c],
-                                        ev)
+                                        ev, geo)
                     if is_cut:  # cut_points.move_to_cut_points
                         for j in range(M):
                             y_end[j] = located_states[cut_column, j]
@@ -281,7 +281,7 @@ def cases_part(
                                 for j in range(M):
                                     work[0, j] = y_end[j] + side * entry_probe * work[2, j]
                                 rhs(work[0], fc, ctl, plain, law, p, geo, work[1], ev, aux)
-                                indicators(ev, aux, work[0], fc, ctl, lam_end[i], target_sign[i], turn_end, sec,
+                                indicators(ev, aux, work[0], fc, ctl, geo, lam_end[i], target_sign[i], turn_end, sec,
                                            values)
                                 rate += side * values[cut_column]
                             if abs(rate) > entry_noise:
@@ -298,11 +298,11 @@ def cases_part(
                         if ctl[0] > 0 and closes_turn and done < turns:  # cut_points.close_turns: W, F, T where it closes
                             slot = first_turn + done
                             turn_closed[i, slot] = True
-                            turn_record(y_end, ev_end, turn_values[i, slot])
+                            turn_record(y_end, ev_end, turn_values[i, slot], geo)
                             done += 1
                             cycles_done[i] = done
                             turn_end = 2 * np.pi * (done + 1)
-                        indicators(ev_end, aux_end, y_end, fc, ctl, lam_end[i], target_sign[i], turn_end, sec,
+                        indicators(ev_end, aux_end, y_end, fc, ctl, geo, lam_end[i], target_sign[i], turn_end, sec,
                                    after)
                         if switching:  # the post-crossing sign, so the crossing is not found twice
                             after[cut_column] = kept
@@ -326,7 +326,7 @@ def cases_part(
                     for c in range(n_columns):  # events.signs_kept: a value without a sign keeps the last
                         if after[c] != 0 or c == target_column:
                             indicator_table[i, c] = after[c]
-                    store_record(recorded, i, record_count[i], arclength[i], stage_number, y_end, ev_end, aux_end)
+                    store_record(recorded, i, record_count[i], arclength[i], stage_number, y_end, ev_end, aux_end, geo)
                     record_count[i] += 1
                     # _end_stages
                     stop_hit = is_cut and cut_column != target_column and stop_row[cut_column]
@@ -384,9 +384,9 @@ def cases_part(
             turn_end = 2 * np.pi * (cycles_done[i] + 1) if ctl[0] > 0 else np.nan
             set_state(parameters[i], geo, secondary_state[i])
             rhs(state, fc, ctl, orient, law, parameters[i], geo, derivative[i], ev, aux)
-            indicators(ev, aux, state, fc, ctl, lam_end[i], target_sign[i], turn_end, secondary_state[i],
+            indicators(ev, aux, state, fc, ctl, geo, lam_end[i], target_sign[i], turn_end, secondary_state[i],
                        indicator_table[i])
-            store_record(recorded, i, record_count[i], arclength[i], stage_number, state, ev, aux)
+            store_record(recorded, i, record_count[i], arclength[i], stage_number, state, ev, aux, geo)
             record_count[i] += 1
             if np.isnan(step_size[i]):
                 for j in range(M):

@@ -102,7 +102,7 @@ def access_part(M, N_INT, angle, control, evaluate, gap, hot, njit, signed_gap, 
         return y[2]
 
     @njit
-    def tangent_at(y, fc, ctl, orient, ev, aux):
+    def tangent_at(y, fc, ctl, orient, ev, aux, geo):
         # the tangent at an evaluated state (ev), into aux
         _, _, g0, g1 = control(y[2], ctl)
         tangent(ev, fc[0], fc[1], g0, g1, orient, aux)
@@ -227,7 +227,7 @@ def access_part(M, N_INT, angle, control, evaluate, gap, hot, njit, signed_gap, 
         return (4.0 * halves - whole) / 3.0
 
     @njit
-    def turn_record(y, ev, row):
+    def turn_record(y, ev, row, geo):
         # cut_points.close_turns: W, F1, F2 and T where a turn closes
         row[0] = y[M - 1]
         row[1] = ev[4]
@@ -235,7 +235,7 @@ def access_part(M, N_INT, angle, control, evaluate, gap, hot, njit, signed_gap, 
         row[3] = ev[3]
 
     @njit
-    def store_record(recorded, i, position, arclength, stage_number, y, ev, aux):
+    def store_record(recorded, i, position, arclength, stage_number, y, ev, aux, geo):
         # stepper.BatchStepper.record, straight into the recorder's padded arrays
         # (``recorded``: one array per field, in the order of BatchStepper.record_fields())
         (r_s, r_stage, r_u, r_lam, r_internal, r_work, r_f, r_l, r_alpha, r_n, r_t, r_k, r_du,
@@ -263,7 +263,7 @@ def access_part(M, N_INT, angle, control, evaluate, gap, hot, njit, signed_gap, 
         r_dlam[i, position] = aux[4]
 
     @njit
-    def store_event(row, arclength, sigma, lower, upper, y, ev):
+    def store_event(row, arclength, sigma, lower, upper, y, ev, geo):
         # crossings.store_first_events, one event of one case
         row[0] = arclength + sigma
         row[1] = arclength + lower

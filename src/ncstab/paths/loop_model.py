@@ -214,7 +214,7 @@ def model_part(rate_form: bool) -> None:
         return 0.0 if abs(value) <= sign_noise * size else value
 
     @njit
-    def indicators(ev, aux, y, fc, ctl, lam_end, target_sign, turn_end, secondary, out):
+    def indicators(ev, aux, y, fc, ctl, geo, lam_end, target_sign, turn_end, secondary, out):
         # events.indicator_values; turn_end: 2 pi (turns done + 1) in a cycle stage, else NaN
         lam, fc0, fc1 = y[2], fc[0], fc[1]
         k00, k01, k10, k11 = ev[6], ev[7], ev[8], ev[9]

@@ -122,10 +122,10 @@ def steps_part(
         else:
             evaluate(y, ctl, law, p, geo, ev)
         if column == turning_col(geo) or column == bifurcation_col(geo):
-            tangent_at(y, fc, ctl, orient, ev, aux)
+            tangent_at(y, fc, ctl, orient, ev, aux, geo)
         else:
             no_tangent(aux)
-        indicators(ev, aux, y, fc, ctl, lam_end, target_sign, turn_end, secondary, values)
+        indicators(ev, aux, y, fc, ctl, geo, lam_end, target_sign, turn_end, secondary, values)
         return values[column]
 
     @njit

@@ -13,9 +13,8 @@ which assembles member by member (:mod:`ncstab.operators.model_assembly`):
 
 (seed Eq. 5, 9, 16, 30-34 for a contact family; D = dQ/dq along the law).
 The seed's reduced diamond has its own fused kernel
-(:class:`ncstab.paths.model.CaseBatch`), the same quantities to rounding;
-mass, damping and domain conditions are the numpy functions of
-:func:`ncstab.systems.compile.compile_system`.
+(:class:`ncstab.paths.model.CaseBatch`), the same quantities to rounding.
+The kernel's row also holds M(u), C(u) and the domain code.
 """
 
 from __future__ import annotations
@@ -27,11 +26,10 @@ from typing import Any
 
 import numpy as np
 
+from ncstab.operators.model_kernel import ModelKernel, model_kernel
 from ncstab.paths.evaluation import Evaluation
 from ncstab.paths.events import IndicatorLayout
-from ncstab.operators.model_kernel import ModelKernel, model_kernel
 from ncstab.paths.variables import family_fields
-from ncstab.systems.compile import CompiledSystem, compile_system
 from ncstab.systems.definition import SystemDefinition
 
 __all__ = ["ModelBatch", "family_fields"]
@@ -70,10 +68,6 @@ class ModelBatch:
     size: int
 
     # --- what the engine reads ----------------------------------------------------------------
-    @property
-    def compiled(self) -> CompiledSystem:
-        return compile_system(self.definition)
-
     @property
     def dof_names(self) -> tuple[str, ...]:
         return self.definition.dofs
@@ -168,9 +162,6 @@ class ModelBatch:
             part.__dict__["_rows"] = self._rows[np.atleast_1d(index)]
         return part
 
-    def _parameter_tuple(self) -> tuple:
-        return tuple(self.parameters[p.name] for p in self.definition.parameters)
-
     # --- the state ------------------------------------------------------------------------------
     def initial_state(self) -> np.ndarray:
         """The unloaded state: u = 0, ``(B, n)``."""
@@ -249,7 +240,6 @@ class ModelBatch:
             normal, tangential = contact_forces[..., 0], contact_forces[..., 1]
         else:
             q_contact, normal, tangential = np.zeros((size, 0, 2)), None, None
-        parameters = self._parameter_tuple()
         return Evaluation(
             q=q_contact,
             normal=normal,
@@ -264,8 +254,9 @@ class ModelBatch:
             internal_gradient=block(layout.gradient, layout.n_internal, n) if layout.n_internal else None,
             dF_dload=block(layout.load, n) if self.has_load else None,
             interactions=interactions,
-            mass=self.compiled.mass(u, parameters),
-            damping=self.compiled.damping(u, parameters),
+            mass=block(layout.mass, n, n) if layout.inertia[0] else None,
+            damping=block(layout.damping, n, n) if layout.inertia[1] else None,
+            domain_code=out[:, layout.domain].astype(int),
         )
 
     def internal_rate(self, evaluation: Evaluation, du: np.ndarray, secondary_state: np.ndarray | None = None) -> np.ndarray:
@@ -287,18 +278,6 @@ class ModelBatch:
 
     def domain_codes(self, evaluation: Evaluation) -> np.ndarray:
         """Per state, -1 inside the domain, else the index of the first violated
-        condition in :attr:`domain_reasons` (contacts: l* > 0 and |alpha| < pi/2)."""
-        size = evaluation.forces.shape[0]
-        checks = []
-        for family, (variables, _) in zip(self.definition.families, evaluation.interactions):
-            if family.kind == "contact":
-                for m in range(family.size):
-                    checks += [variables[:, m, 0] > 0, np.abs(variables[:, m, 1]) < np.pi / 2]
-        if self.definition.domain:
-            values = self.compiled.domain(evaluation.displacements, self._parameter_tuple())
-            checks += [values[:, k] > 0 for k in range(values.shape[1])]
-        if not checks:
-            return np.full(size, -1)
-        inside = np.stack(checks, axis=-1)
-        first = np.argmin(inside, axis=-1)
-        return np.where(inside.all(axis=-1), -1, first + 1)
+        condition in :attr:`domain_reasons` (contacts: l* > 0 and |alpha| < pi/2, then the
+        system's conditions), from the model kernel (:class:`KernelLayout`'s ``domain``)."""
+        return evaluation.domain_code

@@ -1,11 +1,11 @@
 """Numeric functions of a :class:`~ncstab.systems.SystemDefinition` besides its kernel, derived once.
 
-The forces, tangent operator, internal rates, loads and gaps of a model are
+The forces, tangent operator, internal rates, loads, gaps and domain of a model are
 its compiled kernel's (:mod:`ncstab.operators.model_kernel`, one per system and
 laws).  :func:`compile_system` lambdifies the rest of the system's symbolic
 description (once per definition, cached) into broadcasting numpy functions
 of the dofs ``u`` (shape ``(B, n)``) and the system's parameters (each
-``(B,)`` or scalar): the domain conditions, the mass and damping matrices.
+``(B,)`` or scalar): the mass and damping matrices.
 """
 
 from __future__ import annotations
@@ -29,7 +29,6 @@ class CompiledSystem:
     """Numeric functions of one system definition (see :func:`compile_system`)."""
 
     definition: SystemDefinition
-    domain_function: ArrayFunction | None
     mass_function: ArrayFunction | None
     damping_function: ArrayFunction | None
 
@@ -40,12 +39,6 @@ class CompiledSystem:
     def _call(self, function: ArrayFunction, u: np.ndarray, parameters: tuple) -> np.ndarray:
         values = function(*u.T, *parameters)
         return np.broadcast_to(values, (u.shape[0], values.shape[-1]))
-
-    def domain(self, u: np.ndarray, parameters: tuple) -> np.ndarray:
-        """Domain conditions ``(B, D)``: the model is defined where every one is > 0."""
-        if self.domain_function is None:
-            return np.ones((u.shape[0], 0))
-        return self._call(self.domain_function, u, parameters)
 
     def mass(self, u: np.ndarray, parameters: tuple) -> np.ndarray | None:
         """M(u) ``(B, n, n)``, or ``None`` for a system without inertia."""
@@ -62,17 +55,15 @@ class CompiledSystem:
 
 @functools.cache
 def compile_system(definition: SystemDefinition) -> CompiledSystem:
-    """Lambdify (once) the domain, mass and damping functions of a system."""
+    """Lambdify (once) the mass and damping functions of a system (its domain conditions
+    are printed into its compiled model kernel, :mod:`ncstab.operators.model_kernel`)."""
     dofs = definition.dof_symbols
     parameters = [p.symbol for p in definition.parameters]
     arguments = list(dofs) + parameters
-    domain_function = (
-        lambdify_broadcast(arguments, [c.expression for c in definition.domain]) if definition.domain else None
-    )
     mass_function = (
         lambdify_broadcast(arguments, [e for row in definition.mass for e in row]) if definition.mass else None
     )
     damping_function = (
         lambdify_broadcast(arguments, [e for row in definition.damping for e in row]) if definition.damping else None
     )
-    return CompiledSystem(definition, domain_function, mass_function, damping_function)
+    return CompiledSystem(definition, mass_function, damping_function)

@@ -1,0 +1,163 @@
+"""Drive the compiled stage loop of a general model (:mod:`ncstab.paths.loop_general`).
+
+:class:`GeneralStages` is :class:`ncstab.paths.compiled_stages.CompiledStages`
+for a :class:`~ncstab.paths.model_batch.ModelBatch`: the same calls, threads
+and outcomes, with the general model's rows.  The loop is one per form of law
+for every general model (:func:`general_runner`); the model is its compiled
+kernel's C callback, and its sizes and event columns are each case's ``geo``
+row (:data:`ncstab.paths.loop_general.GEO`).  The loop stores what it knows of a
+state (s, u, lambda, internal variables, W, F, K, du, dlambda) straight into the
+recorder and the interactions' block of the kernel's row beside it; after each
+call that block goes into the named interaction fields, with the load parameter
+and the branch index (:meth:`GeneralStages.after_call`).
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ncstab.paths.compiled import StageLoop
+from ncstab.paths.compiled_stages import CompiledStages
+from ncstab.paths.events import STIFFNESS_COLUMNS
+from ncstab.paths.loop_general import GEO
+from ncstab.paths.variables import family_fields
+
+if TYPE_CHECKING:
+    from ncstab.paths.model_batch import ModelBatch
+    from ncstab.paths.stepper import BatchStepper
+
+__all__ = ["GeneralStages", "general_runner", "general_unsupported_reason"]
+
+
+@functools.cache
+def general_runner(rate_form: bool) -> StageLoop:
+    """The compiled stage loop of the general models of one form (compiled once per machine)."""
+    from ncstab.paths.compiled_source import general_loop_source, load_module
+
+    loop = load_module(general_loop_source(rate_form), "ncstab_general_loop").LOOP
+    return StageLoop(loop.run, loop.start)
+
+
+def general_unsupported_reason(batch: ModelBatch, programme: Any) -> str | None:
+    """Why the compiled loop cannot run this general model (``None`` if it can)."""
+    from ncstab.paths.programme import CycleStage
+
+    definition = batch.definition
+    if batch.n_dof < 3:
+        return "general models of two dofs run on the numpy stepper (its closed forms for 2 x 2 systems)"
+    if definition.damping:
+        return "systems with damping (the Hurwitz test of M s^2 + C s + K) run on the numpy stepper"
+    if any(isinstance(stage, CycleStage) for stage in programme.stages):
+        return "cycle stages of general models run on the numpy stepper"
+    if batch.activate_secondary and definition.gaps:
+        return "activated secondary contacts of general models run on the numpy stepper"
+    if any(getattr(law, "no_tension", False) for law in batch.laws):
+        return "no_tension laws of general models run on the numpy stepper"
+    if any(getattr(stage, "at_bifurcation", "continue") != "continue" for stage in programme.stages):
+        return "switching branches at a bifurcation point (at_bifurcation) runs on the numpy stepper"
+    return None
+
+
+class GeneralStages(CompiledStages):
+    """The compiled stage loop bound to a batch of one general model.
+
+    Parameters
+    ----------
+    batch
+        The stepper's cases.
+    loop
+        :func:`general_runner` of the model's form.
+    """
+
+    def __init__(self, batch: ModelBatch, loop: StageLoop) -> None:
+        from ncstab.paths.cofactor import work_size
+
+        size, n = batch.size, batch.n_dof
+        kernel = batch._kernel
+        layout, module = kernel.layout, kernel.module
+        self.runner, self.starter, self.law = loop.run, loop.start, kernel.callback
+        self.batch = batch
+        # p: the kernel's parameter row, the work factor, the contact-state bits (loop_general)
+        self.parameters = np.column_stack([batch._rows, np.full(size, batch.work_factor), np.zeros(size)])
+        columns = batch.columns
+        self.first_interaction = layout.interactions[0][0] if layout.interactions else layout.size
+        scratch = 4 * module.WORK
+        values = {
+            "n": n, "n_internal": layout.n_internal, "size": layout.size, "scratch": scratch,
+            "forces": layout.forces, "stiffness": layout.stiffness, "load": layout.load, "gradient": layout.gradient,
+            "gaps": layout.gaps, "n_gaps": layout.n_gaps, "overlaps": layout.overlaps, "n_open": layout.n_open,
+            "domain": layout.domain, "interactions": self.first_interaction, "has_load": int(batch.has_load),
+            "columns": columns.size, "target": columns.target, "cycle": columns.cycle, "turning": columns.turning,
+            "bifurcation": columns.bifurcation, "limit": 0, "control": 2, "divergence": columns.divergence,
+            "gap_column": STIFFNESS_COLUMNS, "normal_column": columns.normal_columns.start, "row": module.ROW,
+            "ev_size": layout.size + 1 + scratch + n * n + 2 * n + 1 + work_size(n),
+            "mass": layout.mass if layout.inertia[0] else -1,
+        }
+        row = np.array([values[name] for name in GEO], dtype=np.int64)
+        self.geometry = np.ascontiguousarray(np.broadcast_to(row, (size, row.size)))
+        self.code = np.zeros(size, dtype=np.int64)
+        self.detail = np.zeros(size, dtype=np.int64)
+        self.width = layout.size - self.first_interaction
+        self.event_width = 5 + 2 * n + n * n + self.width
+        self._interactions = np.empty((size, 0, self.width))
+
+    def control_rows(self, stages: Any) -> np.ndarray:
+        """is_cycle, the load parameter's offset and slope, then g's offset and slope."""
+        return np.ascontiguousarray(np.column_stack([
+            stages.is_cycle.astype(float), stages.load_offset, stages.load_slope, stages.offset, stages.slope,
+        ]))
+
+    def recorded(self, stepper: BatchStepper) -> tuple:
+        """The recorder's (s, stage, u, lam, internal, work, F, K, du, dlam) and the
+        interactions' block beside them (as long as the recorder)."""
+        arrays = stepper.recorder.arrays
+        if self._interactions.shape[1] != stepper.recorder.capacity:
+            self._interactions = np.empty((self.batch.size, stepper.recorder.capacity, self.width))
+        names = ("s", "stage", "u", "lam", "internal", "work", "F", "K", "du", "dlam")
+        return (*(arrays[name] for name in names), self._interactions)
+
+    def after_call(self, stepper: BatchStepper, cases: np.ndarray, count_before: np.ndarray) -> None:
+        """The interactions, the load parameter and the branch index of the states a call stored."""
+        counts = stepper.recorder.count[cases] - count_before
+        rows = np.repeat(cases, counts)
+        if rows.size == 0:
+            return
+        positions = np.arange(rows.size) - np.repeat(np.cumsum(counts) - counts, counts) + np.repeat(count_before, counts)
+        arrays = stepper.recorder.arrays
+        for name, values in self._named(self._interactions[rows, positions]).items():
+            arrays[name][rows, positions] = values
+        if "load" in arrays:
+            stages = stepper.stages
+            arrays["load"][rows, positions] = stages.load_offset[rows] + stages.load_slope[rows] * arrays["lam"][rows, positions]
+        if "branch_index" in arrays:
+            arrays["branch_index"][rows, positions] = stepper.branch_index[rows]
+
+    def _named(self, block: np.ndarray) -> dict[str, np.ndarray]:
+        """ModelBatch.record_interactions from rows of the interactions' block."""
+        layout = self.batch._kernel.layout
+        out = {}
+        for (family, names, _), (q_at, f_at), (m, k, kf) in zip(
+            family_fields(self.batch.definition), layout.interactions, layout.family_shapes
+        ):
+            variables = block[:, q_at - self.first_interaction : q_at - self.first_interaction + m * k].reshape(-1, m, k)
+            forces = block[:, f_at - self.first_interaction : f_at - self.first_interaction + m * kf].reshape(-1, m, kf)
+            values = np.concatenate([variables, forces], axis=-1)
+            for a, name in enumerate(names):
+                out[name] = values[:, 0, a] if family.size == 1 else values[:, :, a]
+        return out
+
+    def event_fields(self, stepper: BatchStepper, table: dict, rows: np.ndarray, row_values: np.ndarray) -> None:
+        """An event table's fields at ``rows`` from the loop's event rows (loop_general ``store_event``)."""
+        n = self.batch.n_dof
+        for column, key in enumerate(("s", "s_lower", "s_upper", "lam")):
+            table[key][rows] = row_values[:, column]
+        if "load" in table:
+            table["load"][rows] = row_values[:, 4]
+        table["u"][rows] = row_values[:, 5 : 5 + n]
+        table["F"][rows] = row_values[:, 5 + n : 5 + 2 * n]
+        table["K"][rows] = row_values[:, 5 + 2 * n : 5 + 2 * n + n * n].reshape(-1, n, n)
+        for name, values in self._named(row_values[:, 5 + 2 * n + n * n :]).items():
+            table[name][rows] = values

@@ -1,0 +1,186 @@
+"""The compiled stage loop of general models (:mod:`ncstab.paths.loop_general`).
+
+General models of three dofs or more, without damping, cycles, activated gaps,
+``no_tension`` laws or branch switching, run by default on the compiled loop
+(the shared template parts with a general model part, on threads).  It must
+follow the same paths as the numpy stepper, which the tests of
+``test_models.py`` (Hencky's loads, K against sympy) and ``test_bifurcations.py``
+hold to closed forms, and as independent integrations here:
+
+* the two engines are the same algorithms, but not the same roundings: numpy
+  sums of more than seven terms pairwise and multiplies matrices in BLAS, the
+  loop sums in order.  The DOP853 error estimate is a difference of nearly
+  equal stage sums, so a last-bit change moves the next step size by a
+  relative 1e-10 to 1e-7, and the stored states sit at slightly different
+  arclengths along the same path.  What is compared is what does not depend
+  on where the states are stored: statuses and messages, which events were
+  found, their places (each a root located to ``event_tol``), and the ends of
+  the stages (at their targets: projected onto equilibrium to ``newton_tol``
+  for a total form, integrated to ``rtol`` for a rate form);
+* results that depend on neither engine's rounding are bit for bit: 1 and 2
+  threads, a case swept or alone.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import xarray as xr
+from scipy.integrate import solve_ivp
+
+pytest.importorskip("numba")
+
+from ncstab.paths import PathOptions, SystemSpec, follow
+from ncstab.paths.threads import thread_limit, using_threads
+
+RING = SystemSpec("ring", grains=6, secondary_contacts="ignore")
+#: Grains 1 and 4 pushed in, the others free: flutter onsets, gaps closing and, for the
+#: largest gammas, contacts leaving the admissible domain (|alpha| >= pi/2) before the target.
+RING_PROGRAMME = [{"hold": {"F2": 0.0, "F3": 0.0, "F5": 0.0, "F6": 0.0}, "drive": {"D1": 0.6, "D4": 0.6}}]
+RING_GRID = {"gamma": list(np.linspace(0.2, 2.0, 16))}
+OPTIONS = PathOptions()
+
+
+def _column_programme(links: int) -> list[dict]:
+    """An imperfection force eps on the first hinge, then P to 1.1 times Hencky's first load."""
+    others = {f"F{i}": 0.0 for i in range(2, links)}
+    first = 4 * np.sin(np.pi / (2 * links)) ** 2
+    return [
+        {"hold": others, "drive": {"F1": "eps"}},
+        {"hold": {**others, "F1": "current"}, "drive": {"P": 1.1 * first}},
+    ]
+
+
+def _both(spec, laws, programme, grid):
+    """The numpy stepper's and the default engine's archives."""
+    numpy_run = follow(spec, laws, programme, grid, PathOptions(backend="numpy")).to_dataset()
+    default_run = follow(spec, laws, programme, grid, OPTIONS).to_dataset()
+    return numpy_run, default_run
+
+
+def _ends(dataset: xr.Dataset, name: str) -> np.ndarray:
+    """Each case's last stored value of a state variable."""
+    values = dataset[name].values
+    cases = int(np.prod(dataset["n_steps"].shape))
+    values = values.reshape(cases, dataset.sizes["step"], -1)
+    last = dataset["n_steps"].values.reshape(-1) - 1
+    return values[np.arange(cases), last]
+
+
+def _compare(numpy_run: xr.Dataset, default_run: xr.Dataset, end_tol: float) -> None:
+    assert "compiled stepper" in default_run.attrs["engine"]
+    assert "compiled stepper" not in numpy_run.attrs["engine"]
+    np.testing.assert_array_equal(default_run["status"].values, numpy_run["status"].values)
+    np.testing.assert_array_equal(default_run["message"].values, numpy_run["message"].values)
+    for name in ("limit_point", "hill_loss", "controllability_loss", "flutter_onset", "secondary_contact",
+                 "turning_point", "bifurcation", "divergence"):
+        found, expected = default_run[f"{name}_s"].values, numpy_run[f"{name}_s"].values
+        np.testing.assert_array_equal(np.isnan(found), np.isnan(expected), err_msg=name)
+        # each is the root of its indicator to event_tol on paths that agree far closer
+        np.testing.assert_allclose(found, expected, rtol=0, atol=OPTIONS.event_tol, err_msg=name)
+    for name in ("u", "F", "lam", "work"):
+        np.testing.assert_allclose(_ends(default_run, name), _ends(numpy_run, name), rtol=0, atol=end_tol,
+                                   err_msg=name)
+
+
+def test_a_rate_law_ring_follows_the_numpy_steppers_paths_events_and_failures():
+    """Cundall-Strack on the 6-grain ring: flutter onsets (the frequencies' discriminant of
+    M s^2 + K), gaps closing, and cases failing where a contact leaves the domain, with the
+    same messages.  Ends to 1e-9 (10 rtol: two integrations of a rate form, measured 1.6e-11)."""
+    numpy_run, default_run = _both(RING, ["cundall_strack"], RING_PROGRAMME, RING_GRID)
+    _compare(numpy_run, default_run, end_tol=1e-9)
+    statuses = set(default_run["status"].values.ravel())
+    assert statuses == {"finished", "failed:left_domain"}  # both kinds among the 16 cases
+    assert np.isfinite(default_run["flutter_onset_s"].values).sum() >= 3
+    assert np.isfinite(default_run["secondary_contact_s"].values).sum() >= 3
+
+
+@pytest.mark.parametrize("links", [4, 6])
+def test_an_imperfect_column_follows_the_numpy_steppers_paths_to_its_ends(links):
+    """Hencky's column with an imperfection sweep through zero (the perfect column crosses its
+    bifurcation point by an over step): ends to 1e-12 (newton_tol: both projected onto the
+    equilibrium path at the stage's target; measured 1.3e-15)."""
+    grid = {"eps": list(np.linspace(-1e-3, 1e-3, 9))}
+    numpy_run, default_run = _both(SystemSpec("column", links=links), None, _column_programme(links), grid)
+    _compare(numpy_run, default_run, end_tol=1e-12)
+    perfect = default_run.sel(eps=0.0)
+    hencky = 4 * np.sin(np.pi / (2 * links)) ** 2
+    assert abs(float(perfect["bifurcation_load"].item()) - hencky) <= OPTIONS.event_tol
+
+
+def test_a_ring_case_ends_where_an_independent_integration_of_its_rate_system_ends():
+    """Cundall-Strack on the ring, D1 = D4 = t driven to 0.2, the other forces held at 0:
+    the default engine's end state against scipy's DOP853 at rtol 1e-12 of du/dt = M^-1 g'
+    (M the rows of K of the force-controlled dofs and of I elsewhere, g' = e1 + e4) and
+    dT/dt = (dT/du) du/dt, from the model's kernel alone.  To 1e-9: the engine integrates in
+    arclength to rtol 1e-10 (measured 2e-12)."""
+    from ncstab.paths.api import case_batch
+
+    target = 0.2
+    programme = [{"hold": {"F2": 0.0, "F3": 0.0, "F5": 0.0, "F6": 0.0}, "drive": {"D1": target, "D4": target}}]
+    dataset = follow(RING, ["cundall_strack"], programme, {"gamma": 0.5}, OPTIONS).to_dataset()
+    assert "compiled stepper" in dataset.attrs["engine"]
+    assert str(dataset["status"].item()) == "finished"
+    batch = case_batch("cundall_strack", RING, {"gamma": np.array([0.5])}, 1)
+    kernel, n, n_internal = batch._kernel, batch.n_dof, batch.n_internal
+    layout = kernel.layout
+    driven = np.zeros(n)
+    driven[[0, 3]] = 1.0
+    state = batch.initial_secondary_state(np.zeros((1, n)))
+
+    def rhs(_, y):
+        row = kernel.evaluate(y[None, :n], y[None, n:], 0.0, state, batch._rows)[0]
+        stiffness = row[layout.stiffness : layout.stiffness + n * n].reshape(n, n)
+        matrix = np.where(driven[:, None] > 0, np.eye(n), stiffness)
+        du = np.linalg.solve(matrix, driven)
+        gradient = row[layout.gradient : layout.gradient + n_internal * n].reshape(n_internal, n)
+        return np.concatenate([du, gradient @ du])
+
+    y0 = np.concatenate([batch.initial_state()[0], np.zeros(n_internal)])
+    solution = solve_ivp(rhs, (0.0, target), y0, method="DOP853", rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(_ends(dataset, "u")[0], solution.y[:n, -1], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(_ends(dataset, "T")[0], solution.y[n:, -1], rtol=0, atol=1e-9)
+
+
+@pytest.mark.skipif(thread_limit() < 2, reason="numba runs one thread here (NUMBA_NUM_THREADS or one core)")
+def test_one_and_two_threads_give_the_same_general_archive_bit_for_bit():
+    """160 ring cases (three blocks of 64 dealt to two threads): a case's arithmetic does not
+    depend on its thread."""
+    grid = {"gamma": list(np.linspace(0.2, 2.0, 160))}
+    archives = []
+    for threads in (1, 2):
+        with using_threads(threads):
+            dataset = follow(RING, ["cundall_strack"], RING_PROGRAMME, grid, OPTIONS).to_dataset()
+        dataset.attrs.pop("created", None)
+        archives.append(dataset)
+    assert "compiled stepper" in archives[0].attrs["engine"]
+    xr.testing.assert_identical(archives[0], archives[1])
+
+
+def test_a_swept_ring_case_equals_the_case_followed_alone_bit_for_bit():
+    grid = list(np.linspace(0.2, 2.0, 16))
+    swept = follow(RING, ["cundall_strack"], RING_PROGRAMME, {"gamma": grid}, OPTIONS).to_dataset()
+    alone = follow(RING, ["cundall_strack"], RING_PROGRAMME, {"gamma": grid[11]}, OPTIONS).to_dataset()
+    for name in ("u", "F", "lam", "T", "s"):
+        n = int(alone["n_steps"].item())
+        np.testing.assert_array_equal(
+            swept[name].isel(gamma=11).values.reshape(swept.sizes["step"], -1)[:n],
+            alone[name].values.reshape(alone.sizes["step"], -1)[:n],
+        )
+
+
+@pytest.mark.parametrize(
+    ("spec", "laws", "programme", "values", "reason"),
+    [
+        (SystemSpec("ziegler", load="follower"), None, [{"drive": {"P": 1.0}}], {}, "two dofs"),
+        (SystemSpec("ring", grains=6), ["cundall_strack"], RING_PROGRAMME, {"gamma": 0.5},
+         "activated secondary contacts"),
+        (SystemSpec("column", links=5), None, [{"drive": {"P": 0.5}, "at_bifurcation": "branches"}], {},
+         "at_bifurcation"),
+    ],
+)
+def test_what_the_general_loop_leaves_runs_on_the_numpy_stepper_which_the_archive_says(spec, laws, programme,
+                                                                                       values, reason):
+    dataset = follow(spec, laws, programme, values, OPTIONS).to_dataset()
+    engine = dataset.attrs["engine"]
+    assert engine.split(": ", 1)[-1].startswith("numpy stepper") and reason in engine, engine
