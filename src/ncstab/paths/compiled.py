@@ -27,7 +27,10 @@ each tangent by continuity with the motion at the start of its step
 through a singular point of the control, step for step.
 
 What it does not cover runs on the numpy stepper (see
-:func:`unsupported_reason`): the pure-shear limit (``normal = "rigid"``) and general models.  Stage entry, the
+:func:`unsupported_reason`): the pure-shear limit (``normal = "rigid"``).
+General models of three dofs or more run on the same template with a general
+model part (:mod:`ncstab.paths.loop_general`, :mod:`ncstab.paths.compiled_general`,
+which says what it leaves to the numpy stepper).  Stage entry, the
 first stored state of a stage and the assembly of the result stay with the
 numpy stepper: this module runs each case from the start of a stage to its
 end (target, stop event or failure).
@@ -159,11 +162,8 @@ def unsupported_reason(batch: Any, programme: Any) -> str | None:
 
     if isinstance(batch, RigidCaseBatch):
         return "the pure-shear limit (normal = 'rigid') runs on the numpy stepper"
-    if type(batch) is not CaseBatch:
-        return (
-            "general models (any system but the seed's reduced diamond) run on the numpy stepper, "
-            f"evaluated by their compiled model kernels (numba {numba.__version__})"
-        )
+    if type(batch) is not CaseBatch:  # (general models: compiled_general.general_unsupported_reason)
+        return "this system runs on the numpy stepper"
     kernels = batch._kernels
     if kernels is None or len(kernels) != (2 if batch.law.definition.no_tension else 1) or batch.n_dof != 2:
         return "this system has no fused state kernel; it runs on the numpy stepper"
