@@ -1,7 +1,7 @@
 """The compiled stage loop of general models (:mod:`ncstab.paths.loop_general`).
 
-General models of three dofs or more, without damping, cycles, activated gaps,
-``no_tension`` laws or branch switching, run by default on the compiled loop
+General models of three dofs or more, without damping, cycles or branch
+switching, run by default on the compiled loop
 (the shared template parts with a general model part, on threads).  It must
 follow the same paths as the numpy stepper, which the tests of
 ``test_models.py`` (Hencky's loads, K against sympy) and ``test_bifurcations.py``
@@ -95,6 +95,35 @@ def test_a_rate_law_ring_follows_the_numpy_steppers_paths_events_and_failures():
     assert np.isfinite(default_run["secondary_contact_s"].values).sum() >= 3
 
 
+def test_contacts_switch_on_the_compiled_loop_as_on_the_numpy_stepper():
+    """The ring with its nine gaps activated (Cundall-Strack) and with no_tension contacts that
+    open (Turco): located switches, the same statuses, events and ends (1e-9, a rate form)."""
+    numpy_run, default_run = _both(SystemSpec("ring", grains=6), ["cundall_strack"], RING_PROGRAMME, RING_GRID)
+    _compare(numpy_run, default_run, end_tol=1e-9)
+    assert np.isfinite(default_run["secondary_contact_s"].values).sum() >= 3
+    opening = [{"hold": {"F1": 0.0, "F3": 0.0, "F5": 0.0, "F6": 0.0}, "drive": {"D2": 0.3, "D4": -0.3}}]
+    numpy_run, default_run = _both(RING, ["turco+no_tension"], opening, RING_GRID)
+    _compare(numpy_run, default_run, end_tol=1e-9)
+    normal = _ends(default_run, "N")
+    assert (normal == 0).any() and (normal > 0).any()  # contacts opened (N = 0 exactly), others closed
+
+
+def test_gaps_closing_at_once_on_a_symmetric_ring_all_switch():
+    """Grains 1 and 4 of the regular hexagon pushed in (McNamara): four gaps close at the same
+    point by symmetry.  Each must switch (a crossing already past zero, by rounding, at the cut
+    of another is kept for the next piece, cut_points.move_to_cut_points): the free grains then
+    move alike to the end, on both engines (the loop lost one of the four before, and its end
+    state was 4.5e-2 off the symmetric one)."""
+    grid = {"gamma": float(np.linspace(0.2, 2.0, 16)[8])}
+    numpy_run, default_run = _both(SystemSpec("ring", grains=6), ["mcnamara"], RING_PROGRAMME, grid)
+    _compare(numpy_run, default_run, end_tol=1e-9)
+    for run in (numpy_run, default_run):
+        u = _ends(run, "u")[0]
+        assert str(run["status"].item()) == "finished"
+        np.testing.assert_allclose(u[[2, 4, 5]], u[1], rtol=0, atol=1e-12)  # grains 2, 3, 5, 6 alike
+        assert abs(u[0] - u[3]) <= 1e-12
+
+
 @pytest.mark.parametrize("links", [4, 6])
 def test_an_imperfect_column_follows_the_numpy_steppers_paths_to_its_ends(links):
     """Hencky's column with an imperfection sweep through zero (the perfect column crosses its
@@ -173,8 +202,9 @@ def test_a_swept_ring_case_equals_the_case_followed_alone_bit_for_bit():
     ("spec", "laws", "programme", "values", "reason"),
     [
         (SystemSpec("ziegler", load="follower"), None, [{"drive": {"P": 1.0}}], {}, "two dofs"),
-        (SystemSpec("ring", grains=6), ["cundall_strack"], RING_PROGRAMME, {"gamma": 0.5},
-         "activated secondary contacts"),
+        (SystemSpec("ring", grains=6), ["cundall_strack"],
+         [{"cycle": {"center": [0.01, 0.0], "turns": 1, "direction": 1, "dofs": ["D1", "D2"]}}], {"gamma": 0.5},
+         "cycle stages"),
         (SystemSpec("column", links=5), None, [{"drive": {"P": 0.5}, "at_bifurcation": "branches"}], {},
          "at_bifurcation"),
     ],

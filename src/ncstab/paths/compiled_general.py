@@ -52,10 +52,6 @@ def general_unsupported_reason(batch: ModelBatch, programme: Any) -> str | None:
         return "systems with damping (the Hurwitz test of M s^2 + C s + K) run on the numpy stepper"
     if any(isinstance(stage, CycleStage) for stage in programme.stages):
         return "cycle stages of general models run on the numpy stepper"
-    if batch.activate_secondary and definition.gaps:
-        return "activated secondary contacts of general models run on the numpy stepper"
-    if any(getattr(law, "no_tension", False) for law in batch.laws):
-        return "no_tension laws of general models run on the numpy stepper"
     if any(getattr(stage, "at_bifurcation", "continue") != "continue" for stage in programme.stages):
         return "switching branches at a bifurcation point (at_bifurcation) runs on the numpy stepper"
     return None

@@ -109,6 +109,13 @@ def move_to_cut_points(
     column_cut = cut_column[cut_rows]
     brk = np.flatnonzero(stepper.break_columns[column_cut])
     indicators_cut[brk, column_cut[brk]] = indicators[cut_rows[brk], column_cut[brk]]
+    # Another break column already past zero at the cut point (a simultaneous crossing,
+    # on that side by rounding) keeps its sign from before the piece, so the next piece
+    # sees its crossing and switches it too (else it would never switch).
+    before = stepper.indicators[steps.cases[cut_rows]]
+    simultaneous = stepper.break_columns[None, :] & (np.sign(indicators_cut) * np.sign(before) < 0)
+    simultaneous[np.arange(cut_rows.size), column_cut] = False
+    indicators_cut = np.where(simultaneous, before, indicators_cut)
     indicators[cut_rows] = indicators_cut
     # Writable copies (fields may be read-only views).
     steps.aux = steps.aux.take(np.arange(steps.cases.size))

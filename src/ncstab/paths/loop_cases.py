@@ -304,6 +304,9 @@ def cases_part(
                             turn_end = 2 * np.pi * (done + 1)
                         indicators(ev_end, aux_end, y_end, fc, ctl, geo, lam_end[i], target_sign[i], turn_end, sec,
                                    after)
+                        for c in range(n_columns):  # cut_points.move_to_cut_points: a simultaneous crossing
+                            if c != cut_column and break_row[c] and sign(after[c]) * sign(before[c]) < 0:
+                                after[c] = before[c]  # is seen in the next piece, and switched there
                         if switching:  # the post-crossing sign, so the crossing is not found twice
                             after[cut_column] = kept
                     # _commit
