@@ -43,15 +43,11 @@ def general_runner(rate_form: bool) -> StageLoop:
 
 def general_unsupported_reason(batch: ModelBatch, programme: Any) -> str | None:
     """Why the compiled loop cannot run this general model (``None`` if it can)."""
-    from ncstab.paths.programme import CycleStage
-
     definition = batch.definition
     if batch.n_dof < 3:
         return "general models of two dofs run on the numpy stepper (its closed forms for 2 x 2 systems)"
     if definition.damping:
         return "systems with damping (the Hurwitz test of M s^2 + C s + K) run on the numpy stepper"
-    if any(isinstance(stage, CycleStage) for stage in programme.stages):
-        return "cycle stages of general models run on the numpy stepper"
     if any(getattr(stage, "at_bifurcation", "continue") != "continue" for stage in programme.stages):
         return "switching branches at a bifurcation point (at_bifurcation) runs on the numpy stepper"
     return None
@@ -91,6 +87,7 @@ class GeneralStages(CompiledStages):
             "gap_column": STIFFNESS_COLUMNS, "normal_column": columns.normal_columns.start, "row": module.ROW,
             "ev_size": layout.size + 1 + scratch + n * n + 2 * n + 1 + work_size(n),
             "mass": layout.mass if layout.inertia[0] else -1,
+            **self._tangential_slots(batch),
         }
         row = np.array([values[name] for name in GEO], dtype=np.int64)
         self.geometry = np.ascontiguousarray(np.broadcast_to(row, (size, row.size)))
@@ -98,13 +95,42 @@ class GeneralStages(CompiledStages):
         self.detail = np.zeros(size, dtype=np.int64)
         self.width = layout.size - self.first_interaction
         self.event_width = 5 + 2 * n + n * n + self.width
+        self.tangential_shape = batch.interaction_shapes.get("T", ())
+        self.turn_width = 1 + n + max(1, int(np.prod(self.tangential_shape)))
         self._interactions = np.empty((size, 0, self.width))
 
+    @staticmethod
+    def _tangential_slots(batch: ModelBatch) -> dict[str, int]:
+        """Where T (the first contact family's second force, per member) sits in the kernel's row."""
+        layout = batch._kernel.layout
+        for f, family in enumerate(batch.definition.families):
+            if family.kind == "contact":
+                m, _, kf = layout.family_shapes[f]
+                return {"tangential": layout.interactions[f][1] + 1, "tangential_count": m, "tangential_stride": kf}
+        return {"tangential": -1, "tangential_count": 1, "tangential_stride": 0}
+
     def control_rows(self, stages: Any) -> np.ndarray:
-        """is_cycle, the load parameter's offset and slope, then g's offset and slope."""
+        """is_cycle, the load parameter's offset and slope, g's offset and slope, then a
+        cycle's centre, radius, theta0, direction and the two dofs of its plane."""
         return np.ascontiguousarray(np.column_stack([
             stages.is_cycle.astype(float), stages.load_offset, stages.load_slope, stages.offset, stages.slope,
+            stages.center, stages.radius, stages.theta0, stages.turn_direction.astype(float),
+            stages.cycle_axes.astype(float),
         ]))
+
+    def turn_end(self, row: np.ndarray) -> Any:
+        """F and T where turns close, from the loop's rows (W, F, T: loop_general ``turn_record``)."""
+        from ncstab.paths.compiled_stages import _TurnEnd
+
+        n = self.batch.n_dof
+        tangential = row[:, 1 + n :]
+        if self.geometry[0, GEO["tangential"]] < 0:  # no contact family: no T
+            tangential = None
+        elif self.tangential_shape:
+            tangential = tangential.reshape(-1, *self.tangential_shape)
+        else:
+            tangential = tangential[:, :1]
+        return _TurnEnd(forces=row[:, 1 : 1 + n], tangential=tangential)
 
     def recorded(self, stepper: BatchStepper) -> tuple:
         """The recorder's (s, stage, u, lam, internal, work, F, K, du, dlam) and the

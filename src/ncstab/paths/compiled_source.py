@@ -94,7 +94,8 @@ rate_form = {rate_form!r}
 
 def general_loop_source(rate_form: bool) -> str:
     """The stage loop of every general model of one form as the text of a module: the
-    general model part (:mod:`ncstab.paths.loop_general`), the cofactor functions of
+    general model parts (:mod:`ncstab.paths.loop_general`,
+    :mod:`ncstab.paths.loop_general_output`), the cofactor functions of
     :mod:`ncstab.paths.cofactor` as they are, then the shared parts of :func:`loop_source`.
 
     The model is an argument of the loop (its kernel's C callback,
@@ -102,9 +103,19 @@ def general_loop_source(rate_form: bool) -> str:
     case's ``geo`` row: the loop compiles once per form and machine.
     """
     from ncstab.generated_modules import compiled_functions
-    from ncstab.paths import cofactor, loop_cases, loop_general, loop_step_limits, loop_steps
+    from ncstab.paths import (
+        cofactor,
+        loop_cases,
+        loop_general,
+        loop_general_output,
+        loop_step_limits,
+        loop_steps,
+    )
 
-    parts = (loop_general.general_part, loop_steps.steps_part, loop_step_limits.limits_part, loop_cases.cases_part)
+    parts = (
+        loop_general.general_part, loop_general_output.general_output_part, loop_steps.steps_part,
+        loop_step_limits.limits_part, loop_cases.cases_part,
+    )
     body = "\n".join(template_body(part) for part in parts)
     body = body.replace("cache=False", "cache=True").replace("return StageLoop(run_cases, start)", "LOOP = StageLoop(run_cases, start)")
     functions = compiled_functions(

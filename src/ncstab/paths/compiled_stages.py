@@ -96,6 +96,13 @@ class CompiledStages:
         self.detail = np.zeros(size, dtype=np.int64)
         #: Width of a located event's row (:func:`ncstab.paths.loop_diamond` ``store_event``).
         self.event_width = len(EVENT_FIELDS)
+        #: Width of a closed turn's row: W, F1, F2, T (``turn_record``).
+        self.turn_width = 4
+
+    @staticmethod
+    def turn_end(row: np.ndarray) -> _TurnEnd:
+        """F and T where turns close, from the loop's rows (W, F1, F2, T)."""
+        return _TurnEnd(forces=row[:, 1:3], tangential=row[:, 3:4])
 
     def control_rows(self, stages: Any) -> np.ndarray:
         """Each case's control path as the loop's model part reads it."""
@@ -148,7 +155,7 @@ class CompiledStages:
         stage = np.stack([stepper.events[name]["stage"] for name in EVENTS]).astype(np.int64)
         n_turns = int(stepper.turns.turns.sum())
         turn_closed = np.zeros((size, n_turns), dtype=bool)
-        turn_values = np.empty((size, n_turns, 4))  # W, F1, F2, T where a turn closes
+        turn_values = np.empty((size, n_turns, self.turn_width))  # W, F, T where a turn closes
         while True:
             active = np.flatnonzero(stepper.status == RUNNING)
             if active.size == 0:
@@ -228,8 +235,7 @@ class CompiledStages:
         fits = stepper.recorder.fits(paused, pieces)
         stepper.fail_memory(paused[~fits])
 
-    @staticmethod
-    def _close_turns(stepper: BatchStepper, k: int, closed: np.ndarray, values: np.ndarray) -> None:
+    def _close_turns(self, stepper: BatchStepper, k: int, closed: np.ndarray, values: np.ndarray) -> None:
         """The turns of stage ``k`` the loop closed go into the stepper's cycle tables, in
         order (:meth:`ncstab.paths.cycle_turns.CycleTurns.close`, as
         cut_points.close_turns does)."""
@@ -239,7 +245,7 @@ class CompiledStages:
             if cases.size == 0:
                 continue
             row = values[cases, first + turn]
-            where = _TurnEnd(forces=row[:, 1:3], tangential=row[:, 3:4])
+            where = self.turn_end(row)
             stepper.turns.close(cases, np.full(cases.size, k), np.full(cases.size, turn), row[:, 0], where)
             closed[cases, first + turn] = False
 

@@ -36,7 +36,8 @@ __all__ = ["GEO", "general_part"]
 GEO = {name: slot for slot, name in enumerate((
     "n", "n_internal", "size", "scratch", "forces", "stiffness", "load", "gradient", "gaps", "n_gaps", "overlaps",
     "n_open", "domain", "interactions", "has_load", "columns", "target", "cycle", "turning", "bifurcation", "limit",
-    "control", "divergence", "gap_column", "normal_column", "row", "ev_size", "mass",
+    "control", "divergence", "gap_column", "normal_column", "row", "ev_size", "mass", "tangential",
+    "tangential_count", "tangential_stride",
 ))}
 
 
@@ -52,19 +53,23 @@ def general_part(rate_form: bool, cofactor_vector: Any, minimum_norm_step: Any) 
     """
     njit = numba.njit(cache=False, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
     hot = numba.njit(cache=False, error_model="numpy", inline="always")
-    sign_noise, tiny = SIGN_NOISE, TINY
+    sign_noise, tiny = SIGN_NOISE, TINY  # noqa: F841 (read by part 1b)
     G_N, G_NINT, G_SIZE, G_SCRATCH = GEO["n"], GEO["n_internal"], GEO["size"], GEO["scratch"]
     G_FORCES, G_STIFFNESS, G_LOAD, G_GRADIENT = GEO["forces"], GEO["stiffness"], GEO["load"], GEO["gradient"]
-    G_GAPS, G_NGAPS, G_OVERLAPS, G_NOPEN = GEO["gaps"], GEO["n_gaps"], GEO["overlaps"], GEO["n_open"]
-    G_DOMAIN, G_INTERACTIONS, G_HASLOAD, G_COLUMNS = GEO["domain"], GEO["interactions"], GEO["has_load"], GEO["columns"]
+    G_GAPS, G_NGAPS, G_OVERLAPS, G_NOPEN = GEO["gaps"], GEO["n_gaps"], GEO["overlaps"], GEO["n_open"]  # noqa: F841 (read by part 1b)
+    G_DOMAIN, G_INTERACTIONS, G_HASLOAD, G_COLUMNS = GEO["domain"], GEO["interactions"], GEO["has_load"], GEO["columns"]  # noqa: F841 (read by part 1b)
     G_TARGET, G_CYCLE, G_TURNING, G_BIFURCATION = GEO["target"], GEO["cycle"], GEO["turning"], GEO["bifurcation"]
-    G_LIMIT, G_CONTROL, G_DIVERGENCE = GEO["limit"], GEO["control"], GEO["divergence"]
+    G_LIMIT, G_CONTROL, G_DIVERGENCE = GEO["limit"], GEO["control"], GEO["divergence"]  # noqa: F841 (read by part 1b)
     G_GAPCOL, G_NORMALCOL, G_ROW, G_EVSIZE = GEO["gap_column"], GEO["normal_column"], GEO["row"], GEO["ev_size"]
-    G_MASS = GEO["mass"]  # the offset of M(u) in the kernel's row, -1 for a system without inertia
+    # the offset of M(u) in the kernel's row (-1 without inertia)
+    G_MASS = GEO["mass"]  # noqa: F841 (read by part 1b)
+    # T of the first contact family: its offset in the row (-1: none), members, stride
+    G_T, G_TCOUNT, G_TSTRIDE = GEO["tangential"], GEO["tangential_count"], GEO["tangential_stride"]  # noqa: F841 (read by part 1b)
     # The case's p row: the kernel's parameter row (ROW entries), the work factor, then
-    # the contact-state bits.  ctl: is_cycle, load offset, load slope, then g's offset
-    # and slope (n each).  ev: the kernel's row, the load parameter, the kernel's
-    # scratch, then the tangent's (control matrix, rate, cofactor vector, QR work).
+    # the contact-state bits.  ctl: is_cycle, load offset, load slope, g's offset and
+    # slope (n each), then a cycle's centre (2), radius, theta0, direction and plane (2
+    # dofs).  ev: the kernel's row, the load parameter, the kernel's scratch, then the
+    # tangent's (control matrix, rate, cofactor vector, QR work).
     # aux: dv, du, dF (n each), dlambda, det M, |c|, 1.0 where flipped, the branch test.
 
     @hot
@@ -147,7 +152,22 @@ def general_part(rate_form: bool, cofactor_vector: Any, minimum_norm_step: Any) 
         ev[size] = load
 
     @njit
-    def control_system(fc, ctl, ev, geo):
+    def control_at(lam, ctl, n, i):
+        # StageArrays.control_path, one dof: (g_i, g'_i) at lambda; on a cycle stage's circle
+        # for the two dofs of its plane
+        offset, slope = ctl[3 + i], ctl[3 + n + i]
+        if ctl[0] > 0:
+            at = 3 + 2 * n
+            angle = ctl[at + 3] + ctl[at + 4] * lam
+            rate = ctl[at + 2] * ctl[at + 4]
+            if i == int(ctl[at + 5]):
+                return ctl[at] + ctl[at + 2] * np.cos(angle), rate * -np.sin(angle)
+            if i == int(ctl[at + 6]):
+                return ctl[at + 1] + ctl[at + 2] * np.sin(angle), rate * np.cos(angle)
+        return offset + slope * lam, slope
+
+    @njit
+    def control_system(fc, ctl, lam, ev, geo):
         # tangent_field.control_matrix and effective_rate: M = rows of K where the force is
         # controlled, of I elsewhere, and g' - Q dF/dP P_slope; views into ev's scratch
         n = geo[G_N]
@@ -158,7 +178,7 @@ def general_part(rate_form: bool, cofactor_vector: Any, minimum_norm_step: Any) 
         for i in range(n):
             for j in range(n):
                 matrix[i, j] = ev[stiffness + i * n + j] if fc[i] else (1.0 if i == j else 0.0)
-            rate[i] = ctl[3 + n + i]
+            _, rate[i] = control_at(lam, ctl, n, i)
             if has_load:
                 rate[i] = rate[i] - (ev[geo[G_LOAD] + i] if fc[i] else 0.0) * load_slope
         out = ev[base + n * n + n:base + n * n + 2 * n + 1]
@@ -171,7 +191,7 @@ def general_part(rate_form: bool, cofactor_vector: Any, minimum_norm_step: Any) 
         # normalised in (du, dF, dlambda), times the orientation, flipped where it reverses
         # the reference (_continue_reference); aux as above
         n = geo[G_N]
-        matrix, rate, c, work = control_system(fc, ctl, ev, geo)
+        matrix, rate, c, work = control_system(fc, ctl, y[geo[G_N]], ev, geo)
         cofactor_vector(matrix, rate, c, work)
         det_m = c[n]
         stiffness, load_rate = geo[G_STIFFNESS], 0.0
@@ -298,7 +318,7 @@ def general_part(rate_form: bool, cofactor_vector: Any, minimum_norm_step: Any) 
             evaluate(y, ctl, law, p, geo, ev)
             size = 0.0
             for i in range(n):
-                path = ctl[3 + i] + ctl[3 + n + i] * y[n]
+                path, _ = control_at(y[n], ctl, n, i)
                 residual[i] = (ev[forces + i] if fc[i] else y[i]) - path
                 a = abs(residual[i])
                 size = np.nan if (np.isnan(a) or np.isnan(size)) else max(size, a)
@@ -306,7 +326,7 @@ def general_part(rate_form: bool, cofactor_vector: Any, minimum_norm_step: Any) 
                 return True
             if not np.isfinite(size):
                 return False
-            matrix, rate, _, work = control_system(fc, ctl, ev, geo)
+            matrix, rate, _, work = control_system(fc, ctl, y[n], ev, geo)
             if not minimum_norm_step(matrix, rate, residual, step, work):
                 least_squares_step(matrix, rate, residual, step)
             power = 0.0
@@ -348,216 +368,3 @@ def general_part(rate_form: bool, cofactor_vector: Any, minimum_norm_step: Any) 
         for i in range(n):
             total += rate[i] * least[i]
         step[n] = total
-
-    @njit
-    def significant(value, size):
-        # events.indicator_values.significant
-        return 0.0 if abs(value) <= sign_noise * size else value
-
-    @njit
-    def signed_gap(value, secondary, bit):
-        # events._signed_zero: a contact indicator exactly at zero takes the sign of its state
-        if value == 0:
-            return -tiny if (secondary & bit) > 0 else tiny
-        return value
-
-    @njit
-    def target_indicator(lam, lam_end, target_sign):
-        # events.indicator_values: the stage target, (lambda - lambda_end) sign
-        return (lam - lam_end) * target_sign
-
-    @njit
-    def stiffness_indicators(ev, fc, ctl, geo, out):
-        # events.indicator_values, the four columns built on K (operators.indicators: det K,
-        # the least eigenvalue of K_sym, det M, the discriminant of K's characteristic
-        # polynomial; NaN where K is not finite), values within rounding of zero unsigned
-        n, at = geo[G_N], geo[G_STIFFNESS]
-        stiffness = np.empty((n, n))
-        for i in range(n):
-            for j in range(n):
-                stiffness[i, j] = ev[at + i * n + j]
-        matrix, _, _, _ = control_system(fc, ctl, ev, geo)
-        scale = np.nan
-        finite = True
-        for i in range(n):
-            for j in range(n):
-                for value in (stiffness[i, j], matrix[i, j]):
-                    a = abs(value)
-                    if not np.isnan(a) and not (a <= scale):  # nanmax
-                        scale = a
-        for i in range(n):
-            for j in range(n):
-                finite = finite and np.isfinite(stiffness[i, j])
-        if not (np.isfinite(scale) and scale > 0):
-            scale = 1.0
-        square = scale * scale
-        if finite:
-            out[0] = significant(np.linalg.det(stiffness), square)
-            out[1] = significant(np.linalg.eigvalsh(0.5 * (stiffness + stiffness.T))[0], scale)
-        else:
-            out[0] = out[1] = np.nan
-        if geo[G_MASS] >= 0:  # M s^2 + K: the frequencies' discriminant (dynamics.flutter_onset_indicator)
-            out[3] = frequency_discriminant(ev, geo, stiffness, finite)
-        else:
-            out[3] = significant(discriminant(stiffness), square) if finite else np.nan
-        control_finite = True
-        for i in range(n):
-            for j in range(n):
-                control_finite = control_finite and np.isfinite(matrix[i, j])
-        out[2] = significant(np.linalg.det(np.ascontiguousarray(matrix)), square) if control_finite else np.nan
-
-    @njit
-    def discriminant(matrix):
-        # operators.indicators.flutter_discriminant (n > 2): prod_{i<j} (lambda_i - lambda_j)^2,
-        # the eigenvalues of a finite real matrix
-        n = matrix.shape[0]
-        eigenvalues = np.linalg.eigvals(matrix.astype(np.complex128))
-        product = 1.0 + 0.0j
-        for i in range(n):
-            for j in range(i + 1, n):
-                product = product * (eigenvalues[i] - eigenvalues[j]) ** 2
-        return product.real
-
-    @njit
-    def frequency_discriminant(ev, geo, stiffness, finite):
-        # operators.dynamics.frequency_discriminant (n > 2, C = 0): det(M)^(2n - 2) times the
-        # discriminant of M^-1 K; NaN where M is not regular (dynamic_matrices.regular_mass:
-        # |det M| > n eps prod |M_j|) or K not finite
-        n, at = geo[G_N], geo[G_MASS]
-        mass = np.empty((n, n))
-        identity, mass_finite = True, True
-        for i in range(n):
-            for j in range(n):
-                mass[i, j] = ev[at + i * n + j]
-                identity = identity and mass[i, j] == (1.0 if i == j else 0.0)
-                mass_finite = mass_finite and np.isfinite(mass[i, j])
-        if not (mass_finite and finite):
-            return np.nan
-        determinant = np.linalg.det(mass)
-        norms = 1.0
-        for j in range(n):
-            column = 0.0
-            for i in range(n):
-                column += mass[i, j] * mass[i, j]
-            norms *= np.sqrt(column)
-        if not abs(determinant) > n * np.finfo(np.float64).eps * norms:
-            return np.nan
-        product = stiffness.copy() if identity else np.linalg.solve(mass, stiffness)
-        for i in range(n):
-            for j in range(n):
-                if not np.isfinite(product[i, j]):
-                    return np.nan
-        return determinant ** (2 * n - 2) * discriminant(product)
-
-    @njit
-    def indicators(ev, aux, y, fc, ctl, geo, lam_end, target_sign, turn_end, secondary, out):
-        # events.indicator_values for a general layout without inertia; turn_end: 2 pi
-        # (turns done + 1) in a cycle stage, else NaN
-        n, lam = geo[G_N], y[geo[G_N]]
-        stiffness_indicators(ev, fc, ctl, geo, out)
-        for g in range(geo[G_NGAPS]):
-            out[geo[G_GAPCOL] + g] = signed_gap(ev[geo[G_GAPS] + g], secondary, 1 << g)
-        out[geo[G_TURNING]] = aux[3 * n]
-        for j in range(geo[G_NOPEN]):
-            out[geo[G_NORMALCOL] + j] = signed_gap(ev[geo[G_OVERLAPS] + j], secondary, 1 << (geo[G_NGAPS] + j))
-        # the dynamic divergence test: det M of the stage's control, for a system with inertia
-        out[geo[G_DIVERGENCE]] = out[2] if geo[G_MASS] >= 0 else np.nan
-        out[geo[G_BIFURCATION]] = aux[3 * n + 4]
-        out[geo[G_CYCLE]] = lam - turn_end
-        out[geo[G_TARGET]] = target_indicator(lam, lam_end, target_sign)
-
-    @njit
-    def state_indicator(y, column, lam_end, target_sign, secondary, geo):
-        # (True, value) for a column that is a function of y alone: the target
-        if column == geo[G_TARGET]:
-            return True, target_indicator(y[geo[G_N]], lam_end, target_sign)
-        return False, np.nan
-
-    @njit
-    def domain_detail(state, ev_state, geo):
-        # domain_edge.domain_codes, one state: -1 inside the domain, else the index of the
-        # reason in ModelBatch.domain_reasons (0 non-finite numbers; the kernel's code)
-        finite = True
-        for j in range(state.size):
-            finite = finite and np.isfinite(state[j])
-        for i in range(geo[G_N]):
-            finite = finite and np.isfinite(ev_state[geo[G_FORCES] + i])
-        if not finite:
-            return 0
-        return int(ev_state[geo[G_DOMAIN]])
-
-    @njit
-    def arc_through(y0, y_half, y_new, ev_new, ctl, law, p, geo, ev):
-        # over_steps.arc_length: the arc through the start y0, the middle y_half (evaluated in
-        # ev on entry) and the end y_new (ev_new), in (u, F, lambda); ev left at the start
-        n, forces = geo[G_N], geo[G_FORCES]
-        middle = np.empty(n)
-        for i in range(n):
-            middle[i] = ev[forces + i]
-        evaluate(y0, ctl, law, p, geo, ev)
-        whole, first, second = 0.0, 0.0, 0.0
-        for i in range(n):
-            whole += (y_new[i] - y0[i]) ** 2
-            first += (y_half[i] - y0[i]) ** 2
-            second += (y_new[i] - y_half[i]) ** 2
-        for i in range(n):
-            whole += (ev_new[forces + i] - ev[forces + i]) ** 2
-            first += (middle[i] - ev[forces + i]) ** 2
-            second += (ev_new[forces + i] - middle[i]) ** 2
-        whole += (y_new[n] - y0[n]) ** 2
-        first += (y_half[n] - y0[n]) ** 2
-        second += (y_new[n] - y_half[n]) ** 2
-        return (4.0 * (np.sqrt(first) + np.sqrt(second)) - np.sqrt(whole)) / 3.0
-
-    @njit
-    def turn_record(y, ev, row, geo):
-        # (cycle stages do not run in this loop)
-        row[0] = y[y.size - 1]
-
-    @njit
-    def store_record(recorded, i, position, arclength, stage_number, y, ev, aux, geo):
-        # stepper.BatchStepper.record, into the recorder's padded arrays: (s, stage, u, lam,
-        # internal, work, F, K, du, dlam) and the interactions' block of the kernel's row
-        # (``recorded``, :meth:`ncstab.paths.compiled_stages.CompiledStages.recorded`)
-        r_s, r_stage, r_u, r_lam, r_internal, r_work, r_f, r_k, r_du, r_dlam, r_interactions = recorded
-        n, n_internal = geo[G_N], geo[G_NINT]
-        r_s[i, position] = arclength
-        r_stage[i, position] = stage_number
-        for k in range(n):
-            r_u[i, position, k] = y[k]
-            r_f[i, position, k] = ev[geo[G_FORCES] + k]
-            r_du[i, position, k] = aux[n + k]
-            for j in range(n):
-                r_k[i, position, k, j] = ev[geo[G_STIFFNESS] + k * n + j]
-        r_lam[i, position] = y[n]
-        for k in range(n_internal):
-            r_internal[i, position, k] = y[n + 1 + k]
-        r_work[i, position] = y[n + 1 + n_internal]
-        r_dlam[i, position] = aux[3 * n]
-        first = geo[G_INTERACTIONS]
-        for k in range(geo[G_SIZE] - first):
-            r_interactions[i, position, k] = ev[first + k]
-
-    @njit
-    def store_event(row, arclength, sigma, lower, upper, y, ev, geo):
-        # crossings.store_first_events, one event of one case: s, its bracket, lambda, the
-        # load parameter, u, F, K, then the interactions' block of the kernel's row
-        n = geo[G_N]
-        row[0] = arclength + sigma
-        row[1] = arclength + lower
-        row[2] = arclength + upper
-        row[3] = y[n]
-        row[4] = ev[geo[G_SIZE]]
-        at = 5
-        for k in range(n):
-            row[at + k] = y[k]
-        at += n
-        for k in range(n):
-            row[at + k] = ev[geo[G_FORCES] + k]
-        at += n
-        for k in range(n * n):
-            row[at + k] = ev[geo[G_STIFFNESS] + k]
-        at += n * n
-        first = geo[G_INTERACTIONS]
-        for k in range(geo[G_SIZE] - first):
-            row[at + k] = ev[first + k]

@@ -1,0 +1,244 @@
+"""Template, part 1b for a general model, of the compiled stage loop: indicators, domain and storage.
+
+Pasted after :func:`ncstab.paths.loop_general.general_part` (see that module):
+the event indicators (events.indicator_values of a general layout: det K, the
+least eigenvalue of K_sym, det M of the control, the flutter column without or
+with inertia, the gaps and overlaps signed by the contact state, dlambda, the
+divergence and branch tests, the end of a turn and the stage target), the
+domain check, the arc of an over step, and what is stored (states, events,
+closed turns).  The parameters of :func:`general_output_part` are the names it
+uses from part 1 (it is never called).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["general_output_part"]
+
+
+def general_output_part(
+    G_BIFURCATION, G_CYCLE, G_DIVERGENCE, G_DOMAIN, G_FORCES, G_GAPCOL, G_GAPS, G_INTERACTIONS, G_MASS, G_N,
+    G_NGAPS, G_NINT, G_NOPEN, G_NORMALCOL, G_OVERLAPS, G_SIZE, G_STIFFNESS, G_T, G_TARGET, G_TCOUNT, G_TSTRIDE,
+    G_TURNING, control_system, evaluate, njit, sign_noise, tiny,
+) -> None:
+    """Define the general model's indicators, domain check and storage (a template: see the module docstring)."""
+
+    @njit
+    def significant(value, size):
+        # events.indicator_values.significant
+        return 0.0 if abs(value) <= sign_noise * size else value
+
+    @njit
+    def signed_gap(value, secondary, bit):
+        # events._signed_zero: a contact indicator exactly at zero takes the sign of its state
+        if value == 0:
+            return -tiny if (secondary & bit) > 0 else tiny
+        return value
+
+    @njit
+    def target_indicator(lam, lam_end, target_sign):
+        # events.indicator_values: the stage target, (lambda - lambda_end) sign
+        return (lam - lam_end) * target_sign
+
+    @njit
+    def stiffness_indicators(ev, fc, ctl, lam, geo, out):
+        # events.indicator_values, the four columns built on K (operators.indicators: det K,
+        # the least eigenvalue of K_sym, det M, the discriminant of K's characteristic
+        # polynomial; NaN where K is not finite), values within rounding of zero unsigned
+        n, at = geo[G_N], geo[G_STIFFNESS]
+        stiffness = np.empty((n, n))
+        for i in range(n):
+            for j in range(n):
+                stiffness[i, j] = ev[at + i * n + j]
+        matrix, _, _, _ = control_system(fc, ctl, lam, ev, geo)
+        scale = np.nan
+        finite = True
+        for i in range(n):
+            for j in range(n):
+                for value in (stiffness[i, j], matrix[i, j]):
+                    a = abs(value)
+                    if not np.isnan(a) and not (a <= scale):  # nanmax
+                        scale = a
+        for i in range(n):
+            for j in range(n):
+                finite = finite and np.isfinite(stiffness[i, j])
+        if not (np.isfinite(scale) and scale > 0):
+            scale = 1.0
+        square = scale * scale
+        if finite:
+            out[0] = significant(np.linalg.det(stiffness), square)
+            out[1] = significant(np.linalg.eigvalsh(0.5 * (stiffness + stiffness.T))[0], scale)
+        else:
+            out[0] = out[1] = np.nan
+        if geo[G_MASS] >= 0:  # M s^2 + K: the frequencies' discriminant (dynamics.flutter_onset_indicator)
+            out[3] = frequency_discriminant(ev, geo, stiffness, finite)
+        else:
+            out[3] = significant(discriminant(stiffness), square) if finite else np.nan
+        control_finite = True
+        for i in range(n):
+            for j in range(n):
+                control_finite = control_finite and np.isfinite(matrix[i, j])
+        out[2] = significant(np.linalg.det(np.ascontiguousarray(matrix)), square) if control_finite else np.nan
+
+    @njit
+    def discriminant(matrix):
+        # operators.indicators.flutter_discriminant (n > 2): prod_{i<j} (lambda_i - lambda_j)^2,
+        # the eigenvalues of a finite real matrix
+        n = matrix.shape[0]
+        eigenvalues = np.linalg.eigvals(matrix.astype(np.complex128))
+        product = 1.0 + 0.0j
+        for i in range(n):
+            for j in range(i + 1, n):
+                product = product * (eigenvalues[i] - eigenvalues[j]) ** 2
+        return product.real
+
+    @njit
+    def frequency_discriminant(ev, geo, stiffness, finite):
+        # operators.dynamics.frequency_discriminant (n > 2, C = 0): det(M)^(2n - 2) times the
+        # discriminant of M^-1 K; NaN where M is not regular (dynamic_matrices.regular_mass:
+        # |det M| > n eps prod |M_j|) or K not finite
+        n, at = geo[G_N], geo[G_MASS]
+        mass = np.empty((n, n))
+        identity, mass_finite = True, True
+        for i in range(n):
+            for j in range(n):
+                mass[i, j] = ev[at + i * n + j]
+                identity = identity and mass[i, j] == (1.0 if i == j else 0.0)
+                mass_finite = mass_finite and np.isfinite(mass[i, j])
+        if not (mass_finite and finite):
+            return np.nan
+        determinant = np.linalg.det(mass)
+        norms = 1.0
+        for j in range(n):
+            column = 0.0
+            for i in range(n):
+                column += mass[i, j] * mass[i, j]
+            norms *= np.sqrt(column)
+        if not abs(determinant) > n * np.finfo(np.float64).eps * norms:
+            return np.nan
+        product = stiffness.copy() if identity else np.linalg.solve(mass, stiffness)
+        for i in range(n):
+            for j in range(n):
+                if not np.isfinite(product[i, j]):
+                    return np.nan
+        return determinant ** (2 * n - 2) * discriminant(product)
+
+    @njit
+    def indicators(ev, aux, y, fc, ctl, geo, lam_end, target_sign, turn_end, secondary, out):
+        # events.indicator_values for a general layout without inertia; turn_end: 2 pi
+        # (turns done + 1) in a cycle stage, else NaN
+        n, lam = geo[G_N], y[geo[G_N]]
+        stiffness_indicators(ev, fc, ctl, lam, geo, out)
+        for g in range(geo[G_NGAPS]):
+            out[geo[G_GAPCOL] + g] = signed_gap(ev[geo[G_GAPS] + g], secondary, 1 << g)
+        out[geo[G_TURNING]] = aux[3 * n]
+        for j in range(geo[G_NOPEN]):
+            out[geo[G_NORMALCOL] + j] = signed_gap(ev[geo[G_OVERLAPS] + j], secondary, 1 << (geo[G_NGAPS] + j))
+        # the dynamic divergence test: det M of the stage's control, for a system with inertia
+        out[geo[G_DIVERGENCE]] = out[2] if geo[G_MASS] >= 0 else np.nan
+        out[geo[G_BIFURCATION]] = aux[3 * n + 4]
+        out[geo[G_CYCLE]] = lam - turn_end
+        out[geo[G_TARGET]] = target_indicator(lam, lam_end, target_sign)
+
+    @njit
+    def state_indicator(y, column, lam_end, target_sign, secondary, geo):
+        # (True, value) for a column that is a function of y alone: the target
+        if column == geo[G_TARGET]:
+            return True, target_indicator(y[geo[G_N]], lam_end, target_sign)
+        return False, np.nan
+
+    @njit
+    def domain_detail(state, ev_state, geo):
+        # domain_edge.domain_codes, one state: -1 inside the domain, else the index of the
+        # reason in ModelBatch.domain_reasons (0 non-finite numbers; the kernel's code)
+        finite = True
+        for j in range(state.size):
+            finite = finite and np.isfinite(state[j])
+        for i in range(geo[G_N]):
+            finite = finite and np.isfinite(ev_state[geo[G_FORCES] + i])
+        if not finite:
+            return 0
+        return int(ev_state[geo[G_DOMAIN]])
+
+    @njit
+    def arc_through(y0, y_half, y_new, ev_new, ctl, law, p, geo, ev):
+        # over_steps.arc_length: the arc through the start y0, the middle y_half (evaluated in
+        # ev on entry) and the end y_new (ev_new), in (u, F, lambda); ev left at the start
+        n, forces = geo[G_N], geo[G_FORCES]
+        middle = np.empty(n)
+        for i in range(n):
+            middle[i] = ev[forces + i]
+        evaluate(y0, ctl, law, p, geo, ev)
+        whole, first, second = 0.0, 0.0, 0.0
+        for i in range(n):
+            whole += (y_new[i] - y0[i]) ** 2
+            first += (y_half[i] - y0[i]) ** 2
+            second += (y_new[i] - y_half[i]) ** 2
+        for i in range(n):
+            whole += (ev_new[forces + i] - ev[forces + i]) ** 2
+            first += (middle[i] - ev[forces + i]) ** 2
+            second += (ev_new[forces + i] - middle[i]) ** 2
+        whole += (y_new[n] - y0[n]) ** 2
+        first += (y_half[n] - y0[n]) ** 2
+        second += (y_new[n] - y_half[n]) ** 2
+        return (4.0 * (np.sqrt(first) + np.sqrt(second)) - np.sqrt(whole)) / 3.0
+
+    @njit
+    def turn_record(y, ev, row, geo):
+        # cut_points.close_turns: W, F and T (the first contact family's, per member) where a
+        # turn closes
+        n = geo[G_N]
+        row[0] = y[y.size - 1]
+        for i in range(n):
+            row[1 + i] = ev[geo[G_FORCES] + i]
+        for m in range(geo[G_TCOUNT]):
+            row[1 + n + m] = ev[geo[G_T] + m * geo[G_TSTRIDE]] if geo[G_T] >= 0 else np.nan
+
+    @njit
+    def store_record(recorded, i, position, arclength, stage_number, y, ev, aux, geo):
+        # stepper.BatchStepper.record, into the recorder's padded arrays: (s, stage, u, lam,
+        # internal, work, F, K, du, dlam) and the interactions' block of the kernel's row
+        # (``recorded``, :meth:`ncstab.paths.compiled_stages.CompiledStages.recorded`)
+        r_s, r_stage, r_u, r_lam, r_internal, r_work, r_f, r_k, r_du, r_dlam, r_interactions = recorded
+        n, n_internal = geo[G_N], geo[G_NINT]
+        r_s[i, position] = arclength
+        r_stage[i, position] = stage_number
+        for k in range(n):
+            r_u[i, position, k] = y[k]
+            r_f[i, position, k] = ev[geo[G_FORCES] + k]
+            r_du[i, position, k] = aux[n + k]
+            for j in range(n):
+                r_k[i, position, k, j] = ev[geo[G_STIFFNESS] + k * n + j]
+        r_lam[i, position] = y[n]
+        for k in range(n_internal):
+            r_internal[i, position, k] = y[n + 1 + k]
+        r_work[i, position] = y[n + 1 + n_internal]
+        r_dlam[i, position] = aux[3 * n]
+        first = geo[G_INTERACTIONS]
+        for k in range(geo[G_SIZE] - first):
+            r_interactions[i, position, k] = ev[first + k]
+
+    @njit
+    def store_event(row, arclength, sigma, lower, upper, y, ev, geo):
+        # crossings.store_first_events, one event of one case: s, its bracket, lambda, the
+        # load parameter, u, F, K, then the interactions' block of the kernel's row
+        n = geo[G_N]
+        row[0] = arclength + sigma
+        row[1] = arclength + lower
+        row[2] = arclength + upper
+        row[3] = y[n]
+        row[4] = ev[geo[G_SIZE]]
+        at = 5
+        for k in range(n):
+            row[at + k] = y[k]
+        at += n
+        for k in range(n):
+            row[at + k] = ev[geo[G_FORCES] + k]
+        at += n
+        for k in range(n * n):
+            row[at + k] = ev[geo[G_STIFFNESS] + k]
+        at += n * n
+        first = geo[G_INTERACTIONS]
+        for k in range(geo[G_SIZE] - first):
+            row[at + k] = ev[first + k]
