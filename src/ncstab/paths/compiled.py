@@ -45,13 +45,17 @@ compiled as a C callback (:data:`LAW_SIGNATURE`, under a second), so a new law
 does not compile the loop again.  The cases of a stage run side by side on
 threads (the loop releases the GIL; :mod:`ncstab.paths.compiled_stages`).
 
-The loop's text is a template in four parts, :mod:`ncstab.paths.loop_model`
-(the model at a state, the tangent, the indicators),
-:mod:`ncstab.paths.loop_steps` (a DOP853 step, the projection, event
-location, stored states), :mod:`ncstab.paths.loop_step_limits` (the domain's
-edge, and the over step across a simple bifurcation point) and :mod:`ncstab.paths.loop_cases` (each case
-through its stage); :mod:`ncstab.paths.compiled_source` pastes them into
-one module, writes it to the cache and imports it.
+The loop's text is a template in parts: :mod:`ncstab.paths.loop_signs` (the
+indicators' signs), a model part (the diamond's :mod:`ncstab.paths.loop_model`
+and :mod:`ncstab.paths.loop_diamond`, or a general model's
+:mod:`ncstab.paths.loop_general` and :mod:`ncstab.paths.loop_general_output`:
+the model at a state, the tangent, the projection, the indicators, what is
+stored), then the shared parts :mod:`ncstab.paths.loop_steps` (a DOP853 step,
+dense output, event location), :mod:`ncstab.paths.loop_step_limits` (the
+domain's edge, and the over step across a simple bifurcation point) and
+:mod:`ncstab.paths.loop_cases` (each case through its stage);
+:mod:`ncstab.paths.compiled_source` pastes them into one module, writes it to
+the cache and imports it.
 """
 from __future__ import annotations
 

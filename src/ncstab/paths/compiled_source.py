@@ -60,10 +60,17 @@ def loop_source(rate_form: bool) -> str:
     first-class function of :data:`ncstab.paths.compiled.LAW_SIGNATURE`), so a new law compiles its
     kernel only.
     """
-    from ncstab.paths import loop_cases, loop_diamond, loop_model, loop_step_limits, loop_steps
+    from ncstab.paths import (
+        loop_cases,
+        loop_diamond,
+        loop_model,
+        loop_signs,
+        loop_step_limits,
+        loop_steps,
+    )
 
     parts = (
-        loop_model.model_part, loop_diamond.access_part, loop_steps.steps_part, loop_step_limits.limits_part,
+        loop_signs.signs_part, loop_model.model_part, loop_diamond.access_part, loop_steps.steps_part, loop_step_limits.limits_part,
         loop_cases.cases_part,
     )
     body = "\n".join(template_body(part) for part in parts)
@@ -108,12 +115,13 @@ def general_loop_source(rate_form: bool) -> str:
         loop_cases,
         loop_general,
         loop_general_output,
+        loop_signs,
         loop_step_limits,
         loop_steps,
     )
 
     parts = (
-        loop_general.general_part, loop_general_output.general_output_part, loop_steps.steps_part,
+        loop_signs.signs_part, loop_general.general_part, loop_general_output.general_output_part, loop_steps.steps_part,
         loop_step_limits.limits_part, loop_cases.cases_part,
     )
     body = "\n".join(template_body(part) for part in parts)

@@ -26,8 +26,6 @@ from typing import Any
 import numba
 import numpy as np
 
-from ncstab.paths.events import SIGN_NOISE, TINY
-
 __all__ = ["GEO", "general_part"]
 
 #: Slots of a general model's ``geo`` row (int64, the same for every case of a batch):
@@ -53,7 +51,6 @@ def general_part(rate_form: bool, cofactor_vector: Any, minimum_norm_step: Any) 
     """
     njit = numba.njit(cache=False, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
     hot = numba.njit(cache=False, error_model="numpy", inline="always")
-    sign_noise, tiny = SIGN_NOISE, TINY  # noqa: F841 (read by part 1b)
     G_N, G_NINT, G_SIZE, G_SCRATCH = GEO["n"], GEO["n_internal"], GEO["size"], GEO["scratch"]
     G_FORCES, G_STIFFNESS, G_LOAD, G_GRADIENT = GEO["forces"], GEO["stiffness"], GEO["load"], GEO["gradient"]
     G_GAPS, G_NGAPS, G_OVERLAPS, G_NOPEN = GEO["gaps"], GEO["n_gaps"], GEO["overlaps"], GEO["n_open"]  # noqa: F841 (read by part 1b)

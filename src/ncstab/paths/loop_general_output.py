@@ -20,26 +20,9 @@ __all__ = ["general_output_part"]
 def general_output_part(
     G_BIFURCATION, G_CYCLE, G_DIVERGENCE, G_DOMAIN, G_FORCES, G_GAPCOL, G_GAPS, G_INTERACTIONS, G_MASS, G_N,
     G_NGAPS, G_NINT, G_NOPEN, G_NORMALCOL, G_OVERLAPS, G_SIZE, G_STIFFNESS, G_T, G_TARGET, G_TCOUNT, G_TSTRIDE,
-    G_TURNING, control_system, evaluate, njit, sign_noise, tiny,
+    G_TURNING, control_system, evaluate, njit, signed_gap, significant, target_indicator,
 ) -> None:
     """Define the general model's indicators, domain check and storage (a template: see the module docstring)."""
-
-    @njit
-    def significant(value, size):
-        # events.indicator_values.significant
-        return 0.0 if abs(value) <= sign_noise * size else value
-
-    @njit
-    def signed_gap(value, secondary, bit):
-        # events._signed_zero: a contact indicator exactly at zero takes the sign of its state
-        if value == 0:
-            return -tiny if (secondary & bit) > 0 else tiny
-        return value
-
-    @njit
-    def target_indicator(lam, lam_end, target_sign):
-        # events.indicator_values: the stage target, (lambda - lambda_end) sign
-        return (lam - lam_end) * target_sign
 
     @njit
     def stiffness_indicators(ev, fc, ctl, lam, geo, out):

@@ -15,22 +15,25 @@ follows operation for operation).
 
 from __future__ import annotations
 
+from typing import Any
+
 import numba
 import numpy as np
 
 from ncstab.paths.compiled import ACTIVATE_SLOT, ALPHA_SLOT, KAPPA_SLOT, STATE_SLOT
-from ncstab.paths.events import SIGN_NOISE, TINY
 
 __all__ = ["model_part"]
 
 
-def model_part(rate_form: bool) -> None:
+def model_part(rate_form: bool, signed_gap: Any, significant: Any, target_indicator: Any) -> None:
     """Define the model's helpers (a template: see the module docstring).
 
     Parameters
     ----------
     rate_form
         Whether the laws of this loop have a rate form (T an internal variable).
+    signed_gap, significant, target_indicator
+        The indicators' sign helpers (:mod:`ncstab.paths.loop_signs`, pasted before).
     """
     # The helpers are called from compiled code only: no CPython or C wrapper is
     # built for them.  Those of every DOP853 stage (evaluate, tangent, the stage
@@ -38,7 +41,6 @@ def model_part(rate_form: bool) -> None:
     # first compilation (20 s without, 26 s with; see docs/paths.md).
     njit = numba.njit(cache=False, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
     hot = numba.njit(cache=False, error_model="numpy", inline="always")
-    sign_noise, tiny = SIGN_NOISE, TINY
     N_INT = 1 if rate_form else 0  # internal variables: T for a rate form (one contact family)
     M = 4 + N_INT  # noqa: F841 (y = (v0, v1, lambda, [T], W); read by the parts after this one)
     # The case's row p: kappa, whether the secondary springs act, the contact-state
@@ -79,13 +81,6 @@ def model_part(rate_form: bool) -> None:
     def gap(extent):
         # the secondary-contact gap along one diagonal (model: 2 (cos alpha0 - Delta_1) - 1, ...)
         return extent * 2 - 1
-
-    @njit
-    def signed_gap(value, secondary, bit):
-        # events.indicator_values: a gap exactly at zero takes the sign of the contact's state
-        if value == 0:
-            return -tiny if (secondary & bit) > 0 else tiny
-        return value
 
     @njit
     def angle(ev):
@@ -209,11 +204,6 @@ def model_part(rate_form: bool) -> None:
         return total
 
     @njit
-    def significant(value, size):
-        # events.indicator_values.significant
-        return 0.0 if abs(value) <= sign_noise * size else value
-
-    @njit
     def indicators(ev, aux, y, fc, ctl, geo, lam_end, target_sign, turn_end, secondary, out):
         # events.indicator_values; turn_end: 2 pi (turns done + 1) in a cycle stage, else NaN
         lam, fc0, fc1 = y[2], fc[0], fc[1]
@@ -247,8 +237,3 @@ def model_part(rate_form: bool) -> None:
         out[8] = aux[10]  # the branch test (NaN where the tangent was not evaluated)
         out[9] = lam - turn_end  # the end of the current turn (NaN outside a cycle stage)
         out[10] = target_indicator(lam, lam_end, target_sign)
-
-    @njit
-    def target_indicator(lam, lam_end, target_sign):
-        # events.indicator_values: the stage target, (lambda - lambda_end) sign
-        return (lam - lam_end) * target_sign
