@@ -1,7 +1,7 @@
 """The compiled stage loop of general models (:mod:`ncstab.paths.loop_general`).
 
-General models of three dofs or more, without damping or branch switching,
-run by default on the compiled loop
+General models of two dofs or more, without damping or branch switching, run
+by default on the compiled loop
 (the shared template parts with a general model part, on threads).  It must
 follow the same paths as the numpy stepper, which the tests of
 ``test_models.py`` (Hencky's loads, K against sympy) and ``test_bifurcations.py``
@@ -146,10 +146,11 @@ def test_cycles_of_a_ring_close_their_turns_as_on_the_numpy_stepper_and_show_gre
     assert work["mcnamara"].max() < 1e-12
 
 
-@pytest.mark.parametrize("links", [4, 6])
+@pytest.mark.parametrize("links", [3, 4, 6])
 def test_an_imperfect_column_follows_the_numpy_steppers_paths_to_its_ends(links):
     """Hencky's column with an imperfection sweep through zero (the perfect column crosses its
-    bifurcation point by an over step): ends to 1e-12 (newton_tol: both projected onto the
+    bifurcation point by an over step; 3 links: two dofs, the loop's QR tangent against the
+    numpy stepper's 2 x 2 closed forms): ends to 1e-12 (newton_tol: both projected onto the
     equilibrium path at the stage's target; measured 1.3e-15)."""
     grid = {"eps": list(np.linspace(-1e-3, 1e-3, 9))}
     numpy_run, default_run = _both(SystemSpec("column", links=links), None, _column_programme(links), grid)
@@ -223,7 +224,8 @@ def test_a_swept_ring_case_equals_the_case_followed_alone_bit_for_bit():
 @pytest.mark.parametrize(
     ("spec", "laws", "programme", "values", "reason"),
     [
-        (SystemSpec("ziegler", load="follower"), None, [{"drive": {"P": 1.0}}], {}, "two dofs"),
+        (SystemSpec("column", links=2), None, [{"drive": {"P": 1.0}}], {}, "one dof"),
+        (SystemSpec("ziegler", load="follower"), None, [{"drive": {"P": 1.0}}], {}, "damping"),
         (SystemSpec("column", links=5), None, [{"drive": {"P": 0.5}, "at_bifurcation": "branches"}], {},
          "at_bifurcation"),
     ],

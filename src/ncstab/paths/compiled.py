@@ -28,7 +28,7 @@ through a singular point of the control, step for step.
 
 What it does not cover runs on the numpy stepper (see
 :func:`unsupported_reason`): the pure-shear limit (``normal = "rigid"``).
-General models of three dofs or more run on the same template with a general
+General models of two dofs or more run on the same template with a general
 model part (:mod:`ncstab.paths.loop_general`, :mod:`ncstab.paths.compiled_general`,
 which says what it leaves to the numpy stepper).  Stage entry, the
 first stored state of a stage and the assembly of the result stay with the

@@ -44,8 +44,8 @@ def general_runner(rate_form: bool) -> StageLoop:
 def general_unsupported_reason(batch: ModelBatch, programme: Any) -> str | None:
     """Why the compiled loop cannot run this general model (``None`` if it can)."""
     definition = batch.definition
-    if batch.n_dof < 3:
-        return "general models of two dofs run on the numpy stepper (its closed forms for 2 x 2 systems)"
+    if batch.n_dof < 2:
+        return "systems of one dof run on the numpy stepper"
     if definition.damping:
         return "systems with damping (the Hurwitz test of M s^2 + C s + K) run on the numpy stepper"
     if any(getattr(stage, "at_bifurcation", "continue") != "continue" for stage in programme.stages):
