@@ -28,7 +28,7 @@ import numba
 import numpy as np
 import sympy as sp
 
-from ncstab.operators import model_assembly, model_kernel_source
+from ncstab.operators import model_assembly, model_kernel_layout, model_kernel_source
 from ncstab.operators.model_kernel_source import KERNEL_SIGNATURE, KernelLayout, kernel_source
 from ncstab.systems.definition import SystemDefinition
 
@@ -122,7 +122,7 @@ class ModelKernel:
 
 def kernel_name(definition: SystemDefinition, laws: tuple[Any, ...], activate: bool) -> str:
     """The cached module's name: ``model_`` and a hash of all it is printed from."""
-    modules = (sys.modules[__name__], model_kernel_source, model_assembly)
+    modules = (sys.modules[__name__], model_kernel_source, model_kernel_layout, model_assembly)
     generator = b"".join(Path(module.__file__).read_bytes() for module in modules)
     versions = repr((numba.__version__, np.__version__, sp.__version__))
     digest = hashlib.sha256(repr((definition, laws, activate)).encode() + generator + versions.encode())
