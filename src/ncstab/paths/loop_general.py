@@ -289,19 +289,19 @@ def general_part(rate_form: bool, cofactor_vector: Any, minimum_norm_step: Any) 
             for j in range(n):
                 total += ev[gradient + k * n + j] * aux[j]
             dy[n + 1 + k] = total
-        dy[n + 1 + n_internal] = p[geo[G_ROW]] * work_power(ev, aux, geo)
+        dy[n + 1 + n_internal] = p[geo[G_ROW]] * work_power(ev, geo, aux[n:2 * n])
 
     rhs_hot = hot(rhs_py)  # noqa: F841 (read by parts 2 and 3)
     rhs = njit(rhs_py)  # noqa: F841
 
     @njit
-    def work_power(ev, aux, geo):
-        # rhs.work_forces . du: (F - P dF/dP) . du
+    def work_power(ev, geo, du):
+        # rhs.work_forces . du: (F - P dF/dP) . du, F and P of the evaluated state in ev
         n, forces, load = geo[G_N], geo[G_FORCES], ev[geo[G_SIZE]]
         total = 0.0
         for i in range(n):
             force = ev[forces + i] - load * ev[geo[G_LOAD] + i] if geo[G_HASLOAD] > 0 else ev[forces + i]
-            total += force * aux[n + i]
+            total += force * du[i]
         return total
 
     @njit
@@ -326,12 +326,9 @@ def general_part(rate_form: bool, cofactor_vector: Any, minimum_norm_step: Any) 
             matrix, rate, _, work = control_system(fc, ctl, y[n], ev, geo)
             if not minimum_norm_step(matrix, rate, residual, step, work):
                 least_squares_step(matrix, rate, residual, step)
-            power = 0.0
+            power = work_power(ev, geo, step)  # (du = dv; F, P of the state before the step)
             for i in range(n):
                 y[i] += step[i]
-            for i in range(n):
-                force = ev[forces + i] - ev[geo[G_SIZE]] * ev[geo[G_LOAD] + i] if geo[G_HASLOAD] > 0 else ev[forces + i]
-                power += force * step[i]
             y[n] += step[n]
             y[n + 1 + geo[G_NINT]] += p[geo[G_ROW]] * power
         evaluate(y, ctl, law, p, geo, ev)
