@@ -229,10 +229,12 @@ def test_turco_gamma_2_steps_over_its_bifurcation_point_along_its_branch_whateve
     assert np.ptp(located) <= 1e-9, located
 
 
+@pytest.mark.parametrize("backend", ["auto", "numpy"])
 @pytest.mark.parametrize(("direction", "guess"), [(1, 0.55), (-1, 0.16)])
-def test_turco_gamma_2_switches_onto_the_branch_of_neutral_equilibria(direction, guess):
-    """at_bifurcation = switch on the reduced diamond (the numpy stepper; the compiled one
-    says it does not cover it): from the point, the path follows the crossing branch,
+def test_turco_gamma_2_switches_onto_the_branch_of_neutral_equilibria(direction, guess, backend):
+    """at_bifurcation = switch on the reduced diamond (on either engine: the compiled loop
+    returns the case at the point, and the stepper leaves along the branch, as the numpy
+    stepper does, cut_points.switch_branches_at): from the point, the path follows the crossing branch,
     on which F1* = 2 sqrt 2 and F2* = 0 all along (so det K = 0 on it), either way, to
     D1* = 0.6.  Expected: F1* constant to 1e-10 after the point (every state projected to
     newton_tol = 1e-12), and the end state the closed-form equilibrium F2 = 0 at D1* = 0.6
@@ -240,8 +242,8 @@ def test_turco_gamma_2_switches_onto_the_branch_of_neutral_equilibria(direction,
     before the point ends at 0.405), to 1e-10."""
     programme = [TURCO_PROGRAMME[0], {**TURCO_PROGRAMME[1], "at_bifurcation": {"switch": True, "direction": direction}}]
     path = follow(SystemSpec(secondary_contacts="ignore"), "turco", programme,
-                  {"gamma": 2.0, "F2l": 0.0, "alpha0": np.pi / 4})
-    assert path.results[0].engine.startswith("numpy stepper (")
+                  {"gamma": 2.0, "F2l": 0.0, "alpha0": np.pi / 4}, PathOptions(backend=backend))
+    assert path.results[0].engine.startswith("compiled stepper (" if backend == "auto" else "numpy stepper")
     ds = path.to_dataset().squeeze()
     assert str(ds["status"].item()) == "finished"
     n = int(ds["n_steps"])

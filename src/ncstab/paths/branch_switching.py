@@ -30,10 +30,10 @@ import numpy as np
 
 from ncstab.paths.options import PathOptions
 from ncstab.paths.projection import project_finite
-from ncstab.paths.rhs import StateLayout, evaluate_at
+from ncstab.paths.rhs import StateLayout, evaluate_at, work_forces
 from ncstab.paths.tangent_field import StageArrays, control_matrix, effective_rate
 
-__all__ = ["DERIVATIVE_STEP", "LEAVING_STEP", "bifurcating_direction", "switch_branch"]
+__all__ = ["DERIVATIVE_STEP", "LEAVING_STEP", "bifurcating_direction", "leave_along_branch", "switch_branch"]
 
 #: Step of the central differences for the second derivatives of G.
 DERIVATIVE_STEP = 1e-5
@@ -115,6 +115,16 @@ def bifurcating_direction(
     return direction / np.linalg.norm(direction, axis=-1, keepdims=True)
 
 
+def _shift_work(batch: Any, stage: StageArrays, y: np.ndarray, moved: np.ndarray, layout: StateLayout) -> np.ndarray:
+    """The work of the internal forces over the move from ``y`` to ``moved`` (the
+    trapezoidal rule on their power, rhs.work_forces: an error O(LEAVING_STEP^3), 1e-12;
+    without it the work would miss the strain energy of the move, ~ |K| LEAVING_STEP^2)."""
+    before, after = evaluate_at(batch, stage, y, layout), evaluate_at(batch, stage, moved, layout)
+    forces = work_forces(before, stage, y[:, layout.lam]) + work_forces(after, stage, moved[:, layout.lam])
+    du = after.displacements - before.displacements
+    return batch.work_factor * 0.5 * np.sum(forces * du, axis=-1)
+
+
 def switch_branch(
     batch: Any,
     stage: StageArrays,
@@ -126,12 +136,30 @@ def switch_branch(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Leave the bifurcation points ``y`` along the bifurcating branch, way ``sense`` (+-1).
 
-    Returns the new states (a step of :data:`LEAVING_STEP` along the branch,
-    projected onto equilibrium for laws with a total form) and the direction
+    Returns the new states (a step of :data:`LEAVING_STEP` along the branch, its work
+    added, projected onto equilibrium for laws with a total form) and the direction
     taken ``(B, n + 1)`` in (v, lambda).
     """
     direction = sense[:, None] * bifurcating_direction(batch, stage, y, incoming, layout)
     moved = _shifted(y, direction, LEAVING_STEP, layout)
+    moved[:, layout.work] += _shift_work(batch, stage, y, moved, layout)
     if batch.has_total_form:
         moved, _, _ = project_finite(batch, stage, moved, np.zeros(y.shape[0]), layout, options)
     return moved, direction
+
+
+def leave_along_branch(
+    batch: Any, stage: StageArrays, y: np.ndarray, incoming: np.ndarray, layout: StateLayout, options: PathOptions
+) -> tuple[np.ndarray, np.ndarray]:
+    """Cases at simple bifurcation points ``y`` whose stage switches branch, the way
+    ``stage.switch`` (+-1) says (:func:`switch_branch`): their new states, and the motion
+    (du, dF, dlambda) ``(B, 2n + 1)`` along the direction taken, the reference the next
+    tangents continue (so that the path goes on along the new branch, not back)."""
+    moved, direction = switch_branch(batch, stage, y, incoming, stage.switch.astype(float), layout, options)
+    evaluation = evaluate_at(batch, stage, moved, layout)
+    dv, dlam = direction[:, :-1], direction[:, -1]
+    du = np.einsum("bij,bj->bi", evaluation.du_dv, dv)
+    dF = np.einsum("bij,bj->bi", evaluation.dF_dv, dv)
+    if evaluation.dF_dload is not None:
+        dF = dF + evaluation.dF_dload * (stage.load_slope * dlam)[:, None]
+    return moved, np.concatenate([du, dF, dlam[:, None]], axis=-1)

@@ -122,6 +122,7 @@ class Outcome:
     LEFT_DOMAIN = 4  #: reason returned: 0 non-finite, 1 l* <= 0, 2 alpha
     MAX_STEPS = 5
     SINGULAR_BRANCH = 6  #: a contact switch led onto a branch whose control is singular
+    BRANCH_SWITCH = 7  #: at a simple bifurcation point where the stage switches branch (not stored)
 
 
 _N_COLUMNS = len(INDICATOR_EVENTS)
@@ -171,8 +172,6 @@ def unsupported_reason(batch: Any, programme: Any) -> str | None:
     kernels = batch._kernels
     if kernels is None or len(kernels) != (2 if batch.law.definition.no_tension else 1) or batch.n_dof != 2:
         return "this system has no fused state kernel; it runs on the numpy stepper"
-    if any(getattr(stage, "at_bifurcation", "continue") != "continue" for stage in programme.stages):
-        return "switching branches at a bifurcation point (at_bifurcation) runs on the numpy stepper"
     return None
 
 

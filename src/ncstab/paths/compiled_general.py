@@ -48,8 +48,6 @@ def general_unsupported_reason(batch: ModelBatch, programme: Any) -> str | None:
         return "systems of one dof run on the numpy stepper"
     if definition.damping:
         return "systems with damping (the Hurwitz test of M s^2 + C s + K) run on the numpy stepper"
-    if any(getattr(stage, "at_bifurcation", "continue") != "continue" for stage in programme.stages):
-        return "switching branches at a bifurcation point (at_bifurcation) runs on the numpy stepper"
     return None
 
 

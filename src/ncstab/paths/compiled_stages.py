@@ -119,6 +119,18 @@ class CompiledStages:
     def start(self, stepper: BatchStepper, cases: np.ndarray) -> None:
         """Cases ``cases`` start their (set up) stage: dy/ds, indicators and the state stored;
         the first step length where it is still to be estimated."""
+        self._store_start(stepper, cases)
+        stages = stepper.stages
+        cycling = cases[stages.is_cycle[cases]]
+        if cycling.size:  # stage_entry._start_stage: a turn starts (W, F and T there)
+            from ncstab.paths.rhs import evaluate_at
+
+            evaluation = evaluate_at(stepper.batch.take(cycling), stages.take(cycling), stepper.y[cycling], stepper.layout)
+            stepper.turns.start(cycling, stepper.y[cycling, stepper.layout.work], evaluation)
+
+    def _store_start(self, stepper: BatchStepper, cases: np.ndarray) -> None:
+        """dy/ds and the indicators at the states of ``cases``, and the states stored (the
+        first step length where it is still to be estimated)."""
         recorder = stepper.recorder
         recorder.create(stepper.record_fields())
         recorder.reserve(int(recorder.count[cases].max()) + 1 if cases.size else 0)
@@ -134,12 +146,6 @@ class CompiledStages:
             stepper.step_size, stepper.probe_step, stepper.options.rtol, stepper.options.atol,
         )
         self.after_call(stepper, cases, count_before)
-        cycling = cases[stages.is_cycle[cases]]
-        if cycling.size:  # stage_entry._start_stage: a turn starts (W, F and T there)
-            from ncstab.paths.rhs import evaluate_at
-
-            evaluation = evaluate_at(stepper.batch.take(cycling), stages.take(cycling), stepper.y[cycling], stepper.layout)
-            stepper.turns.start(cycling, stepper.y[cycling, stepper.layout.work], evaluation)
 
     def run(self, stepper: BatchStepper) -> None:
         """Run every running case of ``stepper`` to its end, stage by stage."""
@@ -179,7 +185,7 @@ class CompiledStages:
                     stages.target_sign, stages.orientation, stages.reference, secondary_state,
                     stepper.branch_size, stepper.over_length, stepper.over_degenerate, stepper.degenerate_length,
                     stages.cycles_done, int(stepper.turns.turns[k]), int(stepper.turns.first[k]),
-                    turn_closed, turn_values,
+                    turn_closed, turn_values, (stages.switch != 0) & ~stages.switched,
                     self.law, self.parameters, self.geometry, stepper.stop_table[k], stepper.break_columns,
                     event_columns,
                     found, values, stage, int(k), self.recorded(stepper),
@@ -280,7 +286,31 @@ class CompiledStages:
         stepper.fail_outside_domain(cases[outside], np.asarray(stepper.batch.domain_reasons)[detail[outside]])
         stepper.fail_max_steps(cases[code == Outcome.MAX_STEPS])
         stepper.fail_singular_branch(cases[code == Outcome.SINGULAR_BRANCH])
+        self._switch_branches(stepper, cases[code == Outcome.BRANCH_SWITCH])
         stepper.enter_next_stage(cases[code == Outcome.TARGET])
+
+    def _switch_branches(self, stepper: BatchStepper, cases: np.ndarray) -> None:
+        """Cases the loop returned at a simple bifurcation point of a stage that switches
+        branch leave along the bifurcating branch (cut_points.switch_branches_at, one
+        implementation: :func:`ncstab.paths.branch_switching.leave_along_branch`); their new
+        state is stored, and the loop goes on from it with the motion there as reference."""
+        if cases.size == 0:
+            return
+        from ncstab.paths.branch_switching import leave_along_branch
+
+        layout, stages = stepper.layout, stepper.stages
+        stage = stages.take(cases)
+        incoming = np.concatenate([stepper.derivative[cases][:, layout.v], stepper.derivative[cases, layout.lam, None]],
+                                  axis=-1)
+        stepper.y[cases], stages.reference[cases] = leave_along_branch(
+            stepper.batch.take(cases), stage, stepper.y[cases], incoming, layout, stepper.options
+        )
+        stages.switched[cases] = True
+        stepper.branch_index[cases] = stage.switch
+        # no over step planned from the bifurcation point (its branch test is ~0 there)
+        stepper.over_length[cases], stepper.degenerate_length[cases] = 0.0, 0.0
+        stepper.over_degenerate[cases], stepper.branch_size[cases] = False, np.nan
+        self._store_start(stepper, cases)
 
     def _store_events(
         self, stepper: BatchStepper, found: np.ndarray, values: np.ndarray, stage: np.ndarray

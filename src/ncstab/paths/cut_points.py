@@ -20,7 +20,7 @@ import numpy as np
 
 from ncstab.paths.accepted_steps import AcceptedSteps, indicators_at
 from ncstab.paths.contacts import switch_contacts
-from ncstab.paths.rhs import evaluate_at, state_derivative
+from ncstab.paths.rhs import state_derivative
 
 if TYPE_CHECKING:
     from ncstab.paths.stepper import BatchStepper
@@ -145,20 +145,12 @@ def switch_branches_at(stepper: BatchStepper, steps: AcceptedSteps, rows: np.nda
     """Rows ``rows`` are cut at a simple bifurcation point with a switch pending: they
     leave along the bifurcating branch (:func:`ncstab.paths.branch_switching.switch_branch`),
     the motion there becoming the reference the next tangents continue."""
-    from ncstab.paths.branch_switching import switch_branch
+    from ncstab.paths.branch_switching import leave_along_branch
 
     batch, stage = steps.batch.take(rows), steps.stage.take(rows)
     incoming = np.concatenate([steps.aux.dv[rows], steps.aux.dlam[rows, None]], axis=-1)
-    sense = stage.switch.astype(float)
-    moved, direction = switch_branch(batch, stage, steps.y_new[rows], incoming, sense, stepper.layout, stepper.options)
-    steps.y_new[rows] = moved
-    evaluation = evaluate_at(batch, stage, moved, stepper.layout)
-    dv, dlam = direction[:, :-1], direction[:, -1]
-    du = np.einsum("bij,bj->bi", evaluation.du_dv, dv)
-    dF = np.einsum("bij,bj->bi", evaluation.dF_dv, dv)
-    if evaluation.dF_dload is not None:
-        dF = dF + evaluation.dF_dload * (stage.load_slope * dlam)[:, None]
-    motion = np.concatenate([du, dF, dlam[:, None]], axis=-1)
+    steps.y_new[rows], motion = leave_along_branch(batch, stage, steps.y_new[rows], incoming, stepper.layout,
+                                                   stepper.options)
     steps.stage.reference[rows] = motion
     steps.stage.switched[rows] = True
     stepper.stages.switched[steps.cases[rows]] = True

@@ -19,7 +19,7 @@ __all__ = ["cases_part"]
 
 
 def cases_part(
-    rate_form, admissible_at, aux_size, branch_size, column_count, control_col, cuts_always, cycle_col,
+    rate_form, admissible_at, aux_size, bifurcation_col, branch_size, column_count, control_col, cuts_always, cycle_col,
     dense_coefficients, dense_value, domain_detail, dop853, drop_limit_at_bifurcation, ev_size, first_column,
     indicators, initial_step_size, last_admissible, locate, motion, motion_product, motion_size,
     next_degenerate_length, next_over_length, over_step, piece_count, project, rhs, set_reference, set_state,
@@ -30,19 +30,24 @@ def cases_part(
     Outcome_PAUSED, Outcome_TARGET, Outcome_STOPPED = Outcome.PAUSED, Outcome.TARGET, Outcome.STOPPED
     Outcome_STEP_SIZE_UNDERFLOW, Outcome_LEFT_DOMAIN = Outcome.STEP_SIZE_UNDERFLOW, Outcome.LEFT_DOMAIN
     Outcome_MAX_STEPS, Outcome_SINGULAR_BRANCH = Outcome.MAX_STEPS, Outcome.SINGULAR_BRANCH
+    Outcome_BRANCH_SWITCH = Outcome.BRANCH_SWITCH
 
     @numba.njit(cache=False, error_model="numpy", nogil=True)
     def run_cases(cases, y, derivative, indicator_table, step_size, arclength, accepted, rejected, located,
                   force_controlled, control_rows, lam_end, target_sign, orientation, reference, secondary_state,
                   branch_sizes, over_length, over_degenerate, degenerate_length, cycles_done, turns, first_turn,
-                  turn_closed, turn_values, law, parameters, geometry, stop_row, break_row, event_columns, event_found,
+                  turn_closed, turn_values, switch_pending, law, parameters, geometry, stop_row, break_row,
+                  event_columns, event_found,
                   event_values, event_stage, stage_number, recorded, record_count, code, detail, rtol, atol, newton_tol,
                   newton_max_iter, min_step, max_step, max_steps, event_tol, sample_step, max_pieces):
         """Run cases ``cases`` through their current stage (linear or cycle), one after the
         other; see :class:`Outcome`.  ``control_rows``: each case's control path (see
         ``control``); a turn of a cycle stage that closes sets ``turn_closed[i, first_turn
         + turn]`` and stores (W, F1, F2, T) there in ``turn_values`` for the stepper's
-        tables (cut_points.close_turns).
+        tables (cut_points.close_turns).  A case with ``switch_pending`` (its stage switches
+        branch at a simple bifurcation point, not done yet) cuts its step where the
+        bifurcation column changes sign and returns there, unstored, for the stepper to
+        leave along the bifurcating branch (cut_points.switch_branches_at).
 
         Mirrors one case's passes of stepper.BatchStepper: a DOP853 step (projected),
         the step-size control, the domain check, crossings located, the cut, the
@@ -58,6 +63,7 @@ def cases_part(
         M = state_size(y[cases[0]])
         n_columns, n_motion = column_count(first), motion_size(first)
         target_column, cycle_column, control_column = target_col(first), cycle_col(first), control_col(first)
+        bifurcation_column = bifurcation_col(first)
         stages = np.empty((_EXTENDED, M))
         y0 = np.empty(M)
         y_raw = np.empty(M)
@@ -245,7 +251,8 @@ def cases_part(
                     cut_column = 0
                     cut_sigma = np.inf
                     for c in range(n_columns):
-                        cutting = change[c] and (stop_row[c] or cuts_always(geo, c) or break_row[c])
+                        cutting = change[c] and (stop_row[c] or cuts_always(geo, c) or break_row[c]
+                                                 or (switch_pending[i] and c == bifurcation_column))
                         if cutting and sigma[c] < cut_sigma:
                             cut_sigma = sigma[c]
                             cut_column = c
@@ -309,10 +316,13 @@ def cases_part(
                                 after[c] = before[c]  # is seen in the next piece, and switched there
                         if switching:  # the post-crossing sign, so the crossing is not found twice
                             after[cut_column] = kept
-                    # _commit
+                    # _commit (a case leaving for a bifurcating branch keeps dy/ds of the step's end:
+                    # at the point itself the tangent is undetermined; cut_points.switch_branches_at)
+                    stop_hit = is_cut and cut_column != target_column and stop_row[cut_column]
+                    leaving = is_cut and not stop_hit and switch_pending[i] and cut_column == bifurcation_column
                     for j in range(M):
                         y[i, j] = y_end[j]
-                        derivative[i, j] = dy_end[j]
+                        derivative[i, j] = dy_new[j] if leaving else dy_end[j]
                     arclength[i] += reach
                     if piece == 1:
                         accepted[i] += 1
@@ -329,10 +339,13 @@ def cases_part(
                     for c in range(n_columns):  # events.signs_kept: a value without a sign keeps the last
                         if after[c] != 0 or c == target_column:
                             indicator_table[i, c] = after[c]
+                    if leaving:  # the stepper leaves along the bifurcating branch, and stores that state
+                        code[i] = Outcome_BRANCH_SWITCH
+                        ended = True
+                        break
                     store_record(recorded, i, record_count[i], arclength[i], stage_number, y_end, ev_end, aux_end, geo)
                     record_count[i] += 1
                     # _end_stages
-                    stop_hit = is_cut and cut_column != target_column and stop_row[cut_column]
                     at_target = cut_column == target_column or after[target_column] >= 0
                     target_hit = is_cut and not stop_hit and at_target
                     if stop_hit:
