@@ -34,7 +34,7 @@ from ncstab.operators import (
     hurwitz_determinants,
     hurwitz_matrix,
 )
-from ncstab.operators.characteristic_polynomial import _polynomial_by_interpolation
+from ncstab.operators.damped_onset import interpolated_rows
 
 SQRT2 = math.sqrt(2.0)
 #: Ziegler's flutter load (undamped, follower), divergence load (dead), paradox limit.
@@ -461,7 +461,7 @@ def test_interpolation_agrees_with_the_closed_forms(rng, n):
     closed = characteristic_polynomial(mass, damp, stiffness)
     # Both exact to a few eps of the largest term (O(10) here): 1e-13 absolute.
     np.testing.assert_allclose(
-        _polynomial_by_interpolation(mass, damp, stiffness),
+        interpolated_rows(mass, damp, stiffness),
         closed,
         rtol=0,
         atol=1e-13 * np.abs(closed).max(),

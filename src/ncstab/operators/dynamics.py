@@ -30,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ncstab.operators.characteristic_polynomial import characteristic_polynomial, hurwitz_matrix
+from ncstab.operators.damped_onset import damped_onsets
 from ncstab.operators.dynamic_matrices import as_dynamic_matrices, regular_mass, solve_mass
 from ncstab.operators.indicators import det_K, flutter_discriminant
 
@@ -245,18 +245,8 @@ def flutter_onset_indicator(
     discriminant = frequency_discriminant(mass, stiffness) if undamped.any() else np.full(undamped.shape, np.nan)
     if damping is None:
         return discriminant
-    n = mass.shape[-1]
-    valid = (
-        regular_mass(mass)
-        & np.isfinite(damping).all(axis=(-2, -1))
-        & np.isfinite(stiffness).all(axis=(-2, -1))
-    )
-    coefficients = characteristic_polynomial(mass, damping, stiffness)
-    leading = np.where(valid, coefficients[..., 0], 1.0)
-    monic = np.where(valid[..., None], coefficients / leading[..., None], 0.0)
-    hurwitz = hurwitz_matrix(monic)[..., : 2 * n - 1, : 2 * n - 1]
-    delta = np.where(valid, np.linalg.det(hurwitz), np.nan)
-    return np.where(undamped, discriminant, delta)
+    # each case alone, by the compiled per-case function the compiled stepper pastes too
+    return np.where(undamped, discriminant, damped_onsets(mass, damping, stiffness))
 
 
 def critical_frequency(

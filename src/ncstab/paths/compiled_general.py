@@ -43,11 +43,6 @@ def general_runner(rate_form: bool) -> StageLoop:
 
 def general_unsupported_reason(batch: ModelBatch, programme: Any) -> str | None:
     """Why the compiled loop cannot run this general model (``None`` if it can)."""
-    definition = batch.definition
-    if batch.n_dof < 2:
-        return "systems of one dof run on the numpy stepper"
-    if definition.damping:
-        return "systems with damping (the Hurwitz test of M s^2 + C s + K) run on the numpy stepper"
     return None
 
 
@@ -86,6 +81,7 @@ class GeneralStages(CompiledStages):
             "gap_column": STIFFNESS_COLUMNS, "normal_column": columns.normal_columns.start, "row": module.ROW,
             "ev_size": layout.size + 1 + scratch + n * n + 2 * n + 1 + work_size(n),
             "mass": layout.mass if layout.inertia[0] else -1,
+            "damping": layout.damping if layout.inertia[0] and layout.inertia[1] else -1,
             **self._tangential_slots(batch),
         }
         row = np.array([values[name] for name in GEO], dtype=np.int64)

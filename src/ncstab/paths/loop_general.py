@@ -34,7 +34,7 @@ __all__ = ["GEO", "general_part"]
 GEO = {name: slot for slot, name in enumerate((
     "n", "n_internal", "size", "scratch", "forces", "stiffness", "load", "gradient", "gaps", "n_gaps", "overlaps",
     "n_open", "domain", "interactions", "has_load", "columns", "target", "cycle", "turning", "bifurcation", "limit",
-    "control", "divergence", "gap_column", "normal_column", "row", "ev_size", "mass", "tangential",
+    "control", "divergence", "gap_column", "normal_column", "row", "ev_size", "mass", "damping", "tangential",
     "tangential_count", "tangential_stride",
 ))}
 
@@ -58,8 +58,8 @@ def general_part(rate_form: bool, cofactor_vector: Any, minimum_norm_step: Any) 
     G_TARGET, G_CYCLE, G_TURNING, G_BIFURCATION = GEO["target"], GEO["cycle"], GEO["turning"], GEO["bifurcation"]
     G_LIMIT, G_CONTROL, G_DIVERGENCE = GEO["limit"], GEO["control"], GEO["divergence"]  # noqa: F841 (read by part 1b)
     G_GAPCOL, G_NORMALCOL, G_ROW, G_EVSIZE = GEO["gap_column"], GEO["normal_column"], GEO["row"], GEO["ev_size"]
-    # the offset of M(u) in the kernel's row (-1 without inertia)
-    G_MASS = GEO["mass"]  # noqa: F841 (read by part 1b)
+    # the offsets of M(u) and C(u) in the kernel's row (-1 without inertia, without damping)
+    G_MASS, G_DAMPING = GEO["mass"], GEO["damping"]  # noqa: F841 (read by part 1b)
     # T of the first contact family: its offset in the row (-1: none), members, stride
     G_T, G_TCOUNT, G_TSTRIDE = GEO["tangential"], GEO["tangential_count"], GEO["tangential_stride"]  # noqa: F841 (read by part 1b)
     # The case's p row: the kernel's parameter row (ROW entries), the work factor, then

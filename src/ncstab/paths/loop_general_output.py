@@ -18,9 +18,9 @@ __all__ = ["general_output_part"]
 
 
 def general_output_part(
-    G_BIFURCATION, G_CYCLE, G_DIVERGENCE, G_DOMAIN, G_FORCES, G_GAPCOL, G_GAPS, G_INTERACTIONS, G_MASS, G_N,
-    G_NGAPS, G_NINT, G_NOPEN, G_NORMALCOL, G_OVERLAPS, G_SIZE, G_STIFFNESS, G_T, G_TARGET, G_TCOUNT, G_TSTRIDE,
-    G_TURNING, control_system, evaluate, njit, signed_gap, significant, target_indicator,
+    G_BIFURCATION, G_CYCLE, G_DAMPING, G_DIVERGENCE, G_DOMAIN, G_FORCES, G_GAPCOL, G_GAPS, G_INTERACTIONS, G_MASS,
+    G_N, G_NGAPS, G_NINT, G_NOPEN, G_NORMALCOL, G_OVERLAPS, G_SIZE, G_STIFFNESS, G_T, G_TARGET, G_TCOUNT,
+    G_TSTRIDE, G_TURNING, control_system, damped_onset, evaluate, njit, signed_gap, significant, target_indicator,
 ) -> None:
     """Define the general model's indicators, domain check and storage (a template: see the module docstring)."""
 
@@ -54,8 +54,8 @@ def general_output_part(
             out[1] = significant(np.linalg.eigvalsh(0.5 * (stiffness + stiffness.T))[0], scale)
         else:
             out[0] = out[1] = np.nan
-        if geo[G_MASS] >= 0:  # M s^2 + K: the frequencies' discriminant (dynamics.flutter_onset_indicator)
-            out[3] = frequency_discriminant(ev, geo, stiffness, finite)
+        if geo[G_MASS] >= 0:  # M s^2 + C s + K (dynamics.flutter_onset_indicator)
+            out[3] = dynamic_onset(ev, geo, stiffness, finite)
         else:
             out[3] = significant(discriminant(stiffness), square) if finite else np.nan
         control_finite = True
@@ -75,6 +75,27 @@ def general_output_part(
             for j in range(i + 1, n):
                 product = product * (eigenvalues[i] - eigenvalues[j]) ** 2
         return product.real
+
+    @njit
+    def dynamic_onset(ev, geo, stiffness, finite):
+        # dynamics.flutter_onset_indicator: with C exactly 0 (or none), the frequencies'
+        # discriminant; else the Hurwitz determinant Delta_{2n-1} (damped_onset.damped_onset,
+        # pasted as it is)
+        n, at = geo[G_N], geo[G_DAMPING]
+        undamped = True
+        damping = np.empty((n, n))
+        if at >= 0:
+            for i in range(n):
+                for j in range(n):
+                    damping[i, j] = ev[at + i * n + j]
+                    undamped = undamped and damping[i, j] == 0.0
+        if undamped:
+            return frequency_discriminant(ev, geo, stiffness, finite)
+        mass = np.empty((n, n))
+        for i in range(n):
+            for j in range(n):
+                mass[i, j] = ev[geo[G_MASS] + i * n + j]
+        return damped_onset(mass, damping, stiffness, np.empty(2 * n + 1), np.empty((2 * n - 1, 2 * n - 1)))
 
     @njit
     def frequency_discriminant(ev, geo, stiffness, finite):
