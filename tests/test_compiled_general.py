@@ -288,7 +288,7 @@ def _largest_growth(mass: np.ndarray, damping: np.ndarray, stiffness: np.ndarray
 
 def test_damped_pendulums_flutter_on_the_compiled_loop_where_a_root_crosses_the_imaginary_axis():
     """Damping runs on the compiled loop: its flutter column is the Hurwitz determinant
-    Delta_{2n-1} (damped_onset.damped_onset, the numpy stepper's own per-case function,
+    Delta_{2n-1} (onset_cases.damped_onset, the numpy stepper's own per-case function,
     pasted).  Ziegler's pendulum over a 3 x 3 plane of dashpots (b1, b2) (the closed-form
     coefficients of n = 2) and a three-bar pendulum with b = 0.05 (the coefficients by
     interpolation on a circle, n = 3), each stopped at its flutter onset: the same

@@ -34,7 +34,7 @@ from ncstab.operators import (
     hurwitz_determinants,
     hurwitz_matrix,
 )
-from ncstab.operators.damped_onset import interpolated_rows
+from ncstab.operators.onset_cases import interpolated_rows
 
 SQRT2 = math.sqrt(2.0)
 #: Ziegler's flutter load (undamped, follower), divergence load (dead), paradox limit.

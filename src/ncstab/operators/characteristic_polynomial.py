@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ncstab.operators.damped_onset import characteristic_rows
 from ncstab.operators.dynamic_matrices import as_dynamic_matrices
+from ncstab.operators.onset_cases import characteristic_rows
 
 __all__ = ["characteristic_polynomial", "hurwitz_determinants", "hurwitz_matrix"]
 
@@ -33,9 +33,9 @@ def characteristic_polynomial(
     geometric mean of the root moduli, by a discrete Fourier transform (a
     unitary Vandermonde solve): each coefficient to a few eps of the largest
     term of p on the circle
-    (:func:`ncstab.operators.damped_onset.interpolated_coefficients`).  Every
+    (:func:`ncstab.operators.onset_cases.interpolated_coefficients`).  Every
     case is computed alone, by the compiled per-case function the compiled
-    stepper pastes too (:func:`ncstab.operators.damped_onset.characteristic_coefficients`).
+    stepper pastes too (:func:`ncstab.operators.onset_cases.characteristic_coefficients`).
 
     Parameters
     ----------

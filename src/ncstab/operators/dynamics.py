@@ -30,9 +30,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ncstab.operators.damped_onset import damped_onsets
 from ncstab.operators.dynamic_matrices import as_dynamic_matrices, regular_mass, solve_mass
-from ncstab.operators.indicators import det_K, flutter_discriminant
+from ncstab.operators.indicators import det_K
+from ncstab.operators.onset_cases import damped_onsets, frequency_discriminants
 
 __all__ = [
     "critical_frequency",
@@ -193,6 +193,8 @@ def frequency_discriminant(mass: ArrayLike, stiffness: ArrayLike) -> np.ndarray:
     """
     mass, _, stiffness = as_dynamic_matrices(mass, None, stiffness)
     n = mass.shape[-1]
+    if n > 2:  # each case alone, the compiled stepper's function (NaN where not valid)
+        return frequency_discriminants(mass, stiffness)
     valid = regular_mass(mass) & np.isfinite(stiffness).all(axis=(-2, -1))
     if n == 1:
         discriminant = np.ones(mass.shape[:-2])
@@ -205,11 +207,6 @@ def frequency_discriminant(mass: ArrayLike, stiffness: ArrayLike) -> np.ndarray:
             - stiffness[..., 0, 1] * mass[..., 1, 0]
         )
         discriminant = b * b - 4.0 * a * det_K(stiffness)
-    else:
-        product, solved = solve_mass(mass, stiffness)
-        valid &= solved
-        safe_mass = np.where(valid[..., None, None], mass, np.eye(n))
-        discriminant = np.linalg.det(safe_mass) ** (2 * n - 2) * flutter_discriminant(product)
     return np.where(valid, discriminant, np.nan)
 
 

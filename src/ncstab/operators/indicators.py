@@ -90,16 +90,9 @@ def flutter_discriminant(stiffness: np.ndarray) -> np.ndarray:
     stiffness = np.asarray(stiffness, dtype=float)
     if stiffness.shape[-1] == 2:
         return (stiffness[..., 0, 0] - stiffness[..., 1, 1]) ** 2 + 4 * stiffness[..., 0, 1] * stiffness[..., 1, 0]
-    def discriminant(matrices: np.ndarray) -> np.ndarray:
-        eig = np.linalg.eigvals(matrices)
-        n = eig.shape[-1]
-        product = np.ones(eig.shape[:-1], dtype=complex)
-        for i in range(n):
-            for j in range(i + 1, n):
-                product = product * (eig[..., i] - eig[..., j]) ** 2
-        return product.real
+    from ncstab.operators.onset_cases import eigenvalue_discriminants
 
-    return _on_finite(discriminant, stiffness)
+    return eigenvalue_discriminants(stiffness)  # each case alone, the compiled stepper's function
 
 
 def force_controlled_mask(force_controlled: Sequence[bool] | Sequence[int] | np.ndarray, n: int) -> np.ndarray:

@@ -20,7 +20,8 @@ __all__ = ["general_output_part"]
 def general_output_part(
     G_BIFURCATION, G_CYCLE, G_DAMPING, G_DIVERGENCE, G_DOMAIN, G_FORCES, G_GAPCOL, G_GAPS, G_INTERACTIONS, G_MASS,
     G_N, G_NGAPS, G_NINT, G_NOPEN, G_NORMALCOL, G_OVERLAPS, G_SIZE, G_STIFFNESS, G_T, G_TARGET, G_TCOUNT,
-    G_TSTRIDE, G_TURNING, control_system, damped_onset, evaluate, njit, signed_gap, significant, target_indicator,
+    G_TSTRIDE, G_TURNING, control_system, damped_onset, eigenvalue_discriminant, evaluate, frequency_discriminant,
+    njit, signed_gap, significant, target_indicator,
 ) -> None:
     """Define the general model's indicators, domain check and storage (a template: see the module docstring)."""
 
@@ -55,9 +56,9 @@ def general_output_part(
         else:
             out[0] = out[1] = np.nan
         if geo[G_MASS] >= 0:  # M s^2 + C s + K (dynamics.flutter_onset_indicator)
-            out[3] = dynamic_onset(ev, geo, stiffness, finite)
+            out[3] = dynamic_onset(ev, geo, stiffness)
         else:
-            out[3] = significant(discriminant(stiffness), square) if finite else np.nan
+            out[3] = significant(eigenvalue_discriminant(stiffness), square)
         control_finite = True
         for i in range(n):
             for j in range(n):
@@ -65,22 +66,10 @@ def general_output_part(
         out[2] = significant(np.linalg.det(np.ascontiguousarray(matrix)), square) if control_finite else np.nan
 
     @njit
-    def discriminant(matrix):
-        # operators.indicators.flutter_discriminant (n > 2): prod_{i<j} (lambda_i - lambda_j)^2,
-        # the eigenvalues of a finite real matrix
-        n = matrix.shape[0]
-        eigenvalues = np.linalg.eigvals(matrix.astype(np.complex128))
-        product = 1.0 + 0.0j
-        for i in range(n):
-            for j in range(i + 1, n):
-                product = product * (eigenvalues[i] - eigenvalues[j]) ** 2
-        return product.real
-
-    @njit
-    def dynamic_onset(ev, geo, stiffness, finite):
+    def dynamic_onset(ev, geo, stiffness):
         # dynamics.flutter_onset_indicator: with C exactly 0 (or none), the frequencies'
-        # discriminant; else the Hurwitz determinant Delta_{2n-1} (damped_onset.damped_onset,
-        # pasted as it is)
+        # discriminant; else the Hurwitz determinant Delta_{2n-1} (onset_cases.frequency_discriminant
+        # and damped_onset, pasted as they are)
         n, at = geo[G_N], geo[G_DAMPING]
         undamped = True
         damping = np.empty((n, n))
@@ -89,44 +78,13 @@ def general_output_part(
                 for j in range(n):
                     damping[i, j] = ev[at + i * n + j]
                     undamped = undamped and damping[i, j] == 0.0
-        if undamped:
-            return frequency_discriminant(ev, geo, stiffness, finite)
         mass = np.empty((n, n))
         for i in range(n):
             for j in range(n):
                 mass[i, j] = ev[geo[G_MASS] + i * n + j]
+        if undamped:
+            return frequency_discriminant(mass, stiffness)
         return damped_onset(mass, damping, stiffness, np.empty(2 * n + 1), np.empty((2 * n - 1, 2 * n - 1)))
-
-    @njit
-    def frequency_discriminant(ev, geo, stiffness, finite):
-        # operators.dynamics.frequency_discriminant (n > 2, C = 0): det(M)^(2n - 2) times the
-        # discriminant of M^-1 K; NaN where M is not regular (dynamic_matrices.regular_mass:
-        # |det M| > n eps prod |M_j|) or K not finite
-        n, at = geo[G_N], geo[G_MASS]
-        mass = np.empty((n, n))
-        identity, mass_finite = True, True
-        for i in range(n):
-            for j in range(n):
-                mass[i, j] = ev[at + i * n + j]
-                identity = identity and mass[i, j] == (1.0 if i == j else 0.0)
-                mass_finite = mass_finite and np.isfinite(mass[i, j])
-        if not (mass_finite and finite):
-            return np.nan
-        determinant = np.linalg.det(mass)
-        norms = 1.0
-        for j in range(n):
-            column = 0.0
-            for i in range(n):
-                column += mass[i, j] * mass[i, j]
-            norms *= np.sqrt(column)
-        if not abs(determinant) > n * np.finfo(np.float64).eps * norms:
-            return np.nan
-        product = stiffness.copy() if identity else np.linalg.solve(mass, stiffness)
-        for i in range(n):
-            for j in range(n):
-                if not np.isfinite(product[i, j]):
-                    return np.nan
-        return determinant ** (2 * n - 2) * discriminant(product)
 
     @njit
     def indicators(ev, aux, y, fc, ctl, geo, lam_end, target_sign, turn_end, secondary, out):

@@ -1,13 +1,16 @@
-"""The characteristic polynomial det(M s^2 + C s + K) and the damped flutter test, one case at a time.
+"""The flutter-onset tests and the characteristic polynomial det(M s^2 + C s + K), one case at a time.
 
 One implementation for every caller: each function below is one case, in plain
 Python, compiled by numba in a generated module of the cache folder
 (:func:`ncstab.generated_modules.compiled_module`).  The compiled stage loop of
 general models pastes them as they are (:mod:`ncstab.paths.loop_general_output`);
-:func:`characteristic_rows` and :func:`damped_onsets` run a batch, one case after
-the other, for :func:`ncstab.operators.characteristic_polynomial` and
-:func:`ncstab.operators.flutter_onset_indicator` (so a case's numbers do not
-depend on its batch).
+the batch functions (:func:`eigenvalue_discriminants`, :func:`frequency_discriminants`,
+:func:`characteristic_rows`, :func:`damped_onsets`) run one case after the other
+(so a case's numbers do not depend on its batch) for
+:func:`ncstab.operators.flutter_discriminant` (n > 2),
+:func:`ncstab.operators.frequency_discriminant` (n > 2),
+:func:`ncstab.operators.characteristic_polynomial` and
+:func:`ncstab.operators.flutter_onset_indicator`.
 
 Coefficients are stored highest degree first, like :func:`numpy.roots`:
 ``p[0] s^N + p[1] s^(N-1) + ... + p[N]``, N = 2n.
@@ -23,9 +26,68 @@ import numpy as np
 from ncstab.generated_modules import compiled_module
 
 __all__ = [
-    "characteristic_coefficients", "characteristic_rows", "damped_onset", "damped_onsets", "interpolated_coefficients",
+    "characteristic_coefficients", "characteristic_rows", "damped_onset", "damped_onsets", "eigenvalue_discriminant",
+    "eigenvalue_discriminants", "frequency_discriminant", "frequency_discriminants", "interpolated_coefficients",
     "interpolated_rows",
 ]
+
+
+def eigenvalue_discriminant(matrix):
+    """prod_{i<j} (lambda_i - lambda_j)^2 over the eigenvalues of a real n x n matrix (real,
+    negative where it has one complex pair: the discriminant of its characteristic
+    polynomial; :func:`ncstab.operators.flutter_discriminant`, whose vectorized closed
+    form for n = 2, (K11 - K22)^2 + 4 K12 K21, is the expression here).  NaN where an
+    entry is not finite."""
+    n = matrix.shape[0]
+    for i in range(n):
+        for j in range(n):
+            if not np.isfinite(matrix[i, j]):
+                return np.nan
+    if n == 2:
+        return (matrix[0, 0] - matrix[1, 1]) ** 2 + 4 * matrix[0, 1] * matrix[1, 0]
+    eigenvalues = np.linalg.eigvals(matrix.astype(np.complex128))
+    product = 1.0 + 0.0j
+    for i in range(n):
+        for j in range(i + 1, n):
+            product = product * (eigenvalues[i] - eigenvalues[j]) ** 2
+    return product.real
+
+
+def frequency_discriminant(mass, stiffness):
+    """The discriminant of q(mu) = det(M mu + K), mu = s^2
+    (:func:`ncstab.operators.frequency_discriminant`, whose vectorized closed forms for
+    n <= 2 are the expressions here): 1 for n = 1, b^2 - 4 det M det K for n = 2 (b the
+    mixed term), and for n >= 3 det(M)^(2n - 2) times :func:`eigenvalue_discriminant` of
+    M^-1 K (K itself where M is the identity, exactly).  NaN where M is not regular
+    (:func:`ncstab.operators.dynamic_matrices.regular_mass`: |det M| > n eps prod_j |M_j|)
+    or an entry is not finite."""
+    n = mass.shape[0]
+    identity = True
+    for i in range(n):
+        for j in range(n):
+            if not (np.isfinite(mass[i, j]) and np.isfinite(stiffness[i, j])):
+                return np.nan
+            identity = identity and mass[i, j] == (1.0 if i == j else 0.0)
+    if n == 2:
+        determinant = mass[0, 0] * mass[1, 1] - mass[0, 1] * mass[1, 0]
+    else:
+        determinant = np.linalg.det(mass)
+    norms = 1.0
+    for j in range(n):
+        column = 0.0
+        for i in range(n):
+            column += mass[i, j] * mass[i, j]
+        norms *= np.sqrt(column)
+    if not abs(determinant) > n * np.finfo(np.float64).eps * norms:
+        return np.nan
+    if n == 1:
+        return 1.0
+    if n == 2:
+        b = mass[0, 0] * stiffness[1, 1] + stiffness[0, 0] * mass[1, 1] - mass[0, 1] * stiffness[1, 0] - stiffness[0, 1] * mass[1, 0]
+        return b * b - 4.0 * determinant * (stiffness[0, 0] * stiffness[1, 1] - stiffness[0, 1] * stiffness[1, 0])
+    if identity:
+        return eigenvalue_discriminant(stiffness)
+    return determinant ** (2 * n - 2) * eigenvalue_discriminant(np.linalg.solve(mass, stiffness))
 
 
 def characteristic_coefficients(mass, damping, stiffness, out):
@@ -159,6 +221,16 @@ def damped_onset(mass, damping, stiffness, coefficients, hurwitz):
     return np.linalg.det(hurwitz)
 
 
+def _eigenvalue_batch(matrices, out):
+    for b in range(out.shape[0]):
+        out[b] = eigenvalue_discriminant(matrices[b])
+
+
+def _frequency_batch(masses, stiffnesses, out):
+    for b in range(out.shape[0]):
+        out[b] = frequency_discriminant(masses[b], stiffnesses[b])
+
+
 def _characteristic_batch(masses, dampings, stiffnesses, out):
     for b in range(out.shape[0]):
         characteristic_coefficients(masses[b], dampings[b], stiffnesses[b], out[b])
@@ -181,9 +253,30 @@ def _onset_batch(masses, dampings, stiffnesses, out):
 def _compiled() -> Any:
     """This module's per-case functions compiled by numba (a generated module in the cache folder)."""
     return compiled_module(
-        __name__, interpolated_coefficients, characteristic_coefficients, damped_onset, _characteristic_batch,
+        __name__, eigenvalue_discriminant, frequency_discriminant, interpolated_coefficients,
+        characteristic_coefficients, damped_onset, _eigenvalue_batch, _frequency_batch, _characteristic_batch,
         _interpolated_batch, _onset_batch,
     )
+
+
+def eigenvalue_discriminants(matrices: np.ndarray) -> np.ndarray:
+    """``(...)``: :func:`eigenvalue_discriminant` of each ``(..., n, n)`` matrix."""
+    matrices = np.asarray(matrices, dtype=float)
+    n = matrices.shape[-1]
+    rows = np.ascontiguousarray(matrices.reshape(-1, n, n))
+    out = np.empty(rows.shape[0])
+    if out.size:
+        _compiled()._eigenvalue_batch(rows, out)
+    return out.reshape(matrices.shape[:-2])
+
+
+def frequency_discriminants(mass: np.ndarray, stiffness: np.ndarray) -> np.ndarray:
+    """``(...)``: :func:`frequency_discriminant` of each case of a batch."""
+    shape, (masses, _, stiffnesses) = _rows(mass, mass, stiffness)
+    out = np.empty(masses.shape[0])
+    if out.size:
+        _compiled()._frequency_batch(masses, stiffnesses, out)
+    return out.reshape(shape)
 
 
 def _rows(mass: np.ndarray, damping: np.ndarray, stiffness: np.ndarray) -> tuple[tuple[int, ...], tuple[np.ndarray, ...]]:
