@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
+from ncstab.laws import law_definition
 from ncstab.paths import PathOptions, SystemSpec, follow
 from ncstab.symbolic.rigid import rigid_limit
-from ncstab.laws import law_definition
 
 ALPHA0 = math.pi / 4
 # The constrained path is integrated and projected at rtol 1e-10 / Newton 1e-12;
@@ -47,7 +47,8 @@ def test_rigid_limit_is_derived_from_the_laws():
     """Eq. (60), (63): lbar = 1 (rotational laws), cos(alpha - alpha0) (Turco)."""
     import sympy as sp
 
-    from ncstab.laws import ALPHA, ALPHA0 as A0
+    from ncstab.laws import ALPHA
+    from ncstab.laws import ALPHA0 as A0
 
     assert rigid_limit(law_definition("mcnamara")).length == 1
     assert sp.simplify(rigid_limit(law_definition("turco")).length - sp.cos(ALPHA - A0)) == 0
@@ -132,3 +133,38 @@ def test_rigid_dataset_is_labelled_in_units_of_2r_kt():
     # K is undefined on the constraint: NaN, never a silent number.
     n = int(ds["n_steps"].isel(law=0))
     assert np.all(np.isnan(ds["det_K"].isel(law=0).values[:n]))
+
+
+@pytest.mark.parametrize("secondary", ["activate", "stop"])
+def test_the_pure_shear_limit_runs_on_the_compiled_loop_as_on_the_numpy_stepper(secondary):
+    """The pure-shear limit runs by default on the general models' compiled loop
+    (ncstab.paths.compiled_rigid: state coordinates (alpha, Nhat), then (Nhat, Rhat) once
+    a gap blocks the chain).  Against the numpy stepper, for a rotational, a rate and a
+    translational law at two alpha0, blocked (activate) or stopped at the contact: the
+    same statuses, the events and the ends to 1e-12 (sums in another order: measured
+    3e-15; each event a root located to event_tol on paths that agree far closer, each end
+    at the stage's target, projected onto equilibrium for the total forms).  The stored
+    states in between sit at slightly different arclengths (a last-bit change of the
+    DOP853 error estimate moves the next step size), as on every general model
+    (tests/test_compiled_general.py); tests/test_golden.py compares every stored state of
+    the seed's Figs. 14-15 to 1e-12 with the steps of the golden (max_step 0.02, every
+    step stored)."""
+    laws = ["mcnamara", "cundall_strack", "turco"]
+    parameters = {"alpha0": [ALPHA0, math.pi / 5]}
+    programme = [{"hold": {"F2": 0.0}, "drive": {"F1": 1.0}}]
+    spec = SystemSpec(normal="rigid", secondary_contacts=secondary)
+    numpy_run = follow(spec, laws, programme, parameters, PathOptions(backend="numpy")).to_dataset()
+    default_run = follow(spec, laws, programme, parameters).to_dataset()
+    assert default_run.attrs["engine"].count("compiled stepper") == len(laws)
+    np.testing.assert_array_equal(default_run["status"].values, numpy_run["status"].values)
+    expected = "finished" if secondary == "activate" else "stopped:secondary_contact"
+    assert (default_run["status"].values == expected).all()
+    for name in ("secondary_contact_s", "secondary_contact_u", "secondary_contact_F", "secondary_contact_alpha",
+                 "controllability_loss_s"):
+        np.testing.assert_allclose(default_run[name].values, numpy_run[name].values, rtol=0, atol=1e-12,
+                                   equal_nan=True, err_msg=name)
+    last = default_run["n_steps"] - 1
+    for name in ("u", "F", "lam", "work", "alpha", "N", "T"):
+        np.testing.assert_allclose(default_run[name].isel(step=last).values,
+                                   numpy_run[name].isel(step=numpy_run["n_steps"] - 1).values,
+                                   rtol=0, atol=1e-12, err_msg=name)

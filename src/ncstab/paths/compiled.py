@@ -26,11 +26,9 @@ each tangent by continuity with the motion at the start of its step
 (:func:`ncstab.paths.tangent_field.path_tangent`), so both go straight on
 through a singular point of the control, step for step.
 
-What it does not cover runs on the numpy stepper (see
-:func:`unsupported_reason`): the pure-shear limit (``normal = "rigid"``).
-General models of two dofs or more run on the same template with a general
-model part (:mod:`ncstab.paths.loop_general`, :mod:`ncstab.paths.compiled_general`,
-which says what it leaves to the numpy stepper).  Stage entry, the
+General models (:mod:`ncstab.paths.loop_general`, :mod:`ncstab.paths.compiled_general`)
+and the pure-shear limit (``normal = "rigid"``, :mod:`ncstab.paths.compiled_rigid`) run
+on the same template with the general model part.  Stage entry, the
 first stored state of a stage and the assembly of the result stay with the
 numpy stepper: this module runs each case from the start of a stage to its
 end (target, stop event or failure).
@@ -163,11 +161,8 @@ def unsupported_reason(batch: Any, programme: Any) -> str | None:
         The loading programme.
     """
     from ncstab.paths.model import CaseBatch
-    from ncstab.paths.rigid_model import RigidCaseBatch
 
-    if isinstance(batch, RigidCaseBatch):
-        return "the pure-shear limit (normal = 'rigid') runs on the numpy stepper"
-    if type(batch) is not CaseBatch:  # (general models: compiled_general.general_unsupported_reason)
+    if type(batch) is not CaseBatch:  # (general models and the pure-shear limit: engine_choice)
         return "this system runs on the numpy stepper"
     kernels = batch._kernels
     if kernels is None or len(kernels) != (2 if batch.law.definition.no_tension else 1) or batch.n_dof != 2:

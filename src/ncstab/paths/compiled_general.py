@@ -82,6 +82,7 @@ class GeneralStages(CompiledStages):
             "ev_size": layout.size + 1 + scratch + n * n + 2 * n + 1 + work_size(n),
             "mass": layout.mass if layout.inertia[0] else -1,
             "damping": layout.damping if layout.inertia[0] and layout.inertia[1] else -1,
+            "coordinates": -1, "blocking": 0,
             **self._tangential_slots(batch),
         }
         row = np.array([values[name] for name in GEO], dtype=np.int64)

@@ -38,9 +38,17 @@ def choose_engine(
             compiled.stage_runner(batch)  # raises, naming what to install
         return None, f"{NUMPY_ENGINE} (numba is not installed)"
     from ncstab.paths.model_batch import ModelBatch
+    from ncstab.paths.rigid_model import RigidCaseBatch
 
     if isinstance(batch, ModelBatch):
         return _general_engine(batch, programme, asked)
+    if isinstance(batch, RigidCaseBatch):  # the pure-shear limit: on the general models' loop
+        from ncstab.paths.compiled_general import general_runner
+        from ncstab.paths.compiled_rigid import RigidStages
+
+        stages = RigidStages(batch, general_runner(not batch.has_total_form))
+        version = compiled.numba.__version__
+        return stages, f"compiled stepper (numba {version}) with the pure-shear limit's kernel, numpy stepper for what it leaves"
     reason = compiled.unsupported_reason(batch, programme)
     if reason is not None:
         because = "backend = 'compiled' asked" if asked else "the compiled stepper does not cover this"

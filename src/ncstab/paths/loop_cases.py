@@ -22,7 +22,7 @@ def cases_part(
     rate_form, admissible_at, aux_size, bifurcation_col, branch_size, column_count, control_col, cuts_always, cycle_col,
     dense_coefficients, dense_value, domain_detail, dop853, drop_limit_at_bifurcation, ev_size, first_column,
     indicators, initial_step_size, last_admissible, locate, motion, motion_product, motion_size,
-    next_degenerate_length, next_over_length, over_step, piece_count, project, rhs, set_reference, set_state,
+    next_degenerate_length, next_over_length, next_state, over_step, piece_count, project, rhs, set_reference, set_state,
     sign, state_size, store_event, store_record, switch_bit, target_col, tries_degenerate, turn_record,
 ) -> StageLoop:
     """Define ``run_cases`` and ``start`` and return them (a template: see the module docstring)."""
@@ -276,7 +276,7 @@ def cases_part(
                             plain[0] = orient[0]
                             rhs(y_end, fc, ctl, plain, law, p, geo, work[2], ev, aux)
                             motion(ev, aux, motion_before)
-                            sec = sec ^ switch_bit(geo, cut_column)
+                            sec = next_state(geo, sec, switch_bit(geo, cut_column), y_end)
                             set_state(p, geo, sec)
                             secondary_state[i] = sec
                             rhs(y_end, fc, ctl, plain, law, p, geo, work[2], ev, aux)

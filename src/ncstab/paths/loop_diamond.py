@@ -88,6 +88,11 @@ def access_part(M, N_INT, angle, control, evaluate, gap, hot, njit, signed_gap, 
         return switch_bits[column]
 
     @hot
+    def next_state(geo, secondary, bit, y):
+        # contacts.switch_contacts: the contact state after a switch of ``bit`` (model.close_contact)
+        return secondary ^ bit
+
+    @hot
     def cuts_always(geo, column):
         # the target, the end of a turn and a no_tension contact's switch cut a step
         return cut_always[column]

@@ -35,7 +35,7 @@ GEO = {name: slot for slot, name in enumerate((
     "n", "n_internal", "size", "scratch", "forces", "stiffness", "load", "gradient", "gaps", "n_gaps", "overlaps",
     "n_open", "domain", "interactions", "has_load", "columns", "target", "cycle", "turning", "bifurcation", "limit",
     "control", "divergence", "gap_column", "normal_column", "row", "ev_size", "mass", "damping", "tangential",
-    "tangential_count", "tangential_stride",
+    "tangential_count", "tangential_stride", "coordinates", "blocking",
 ))}
 
 
@@ -62,6 +62,10 @@ def general_part(rate_form: bool, cofactor_vector: Any, minimum_norm_step: Any) 
     G_MASS, G_DAMPING = GEO["mass"], GEO["damping"]  # noqa: F841 (read by part 1b)
     # T of the first contact family: its offset in the row (-1: none), members, stride
     G_T, G_TCOUNT, G_TSTRIDE = GEO["tangential"], GEO["tangential_count"], GEO["tangential_stride"]  # noqa: F841 (read by part 1b)
+    # State coordinates v other than u (the pure-shear limit, compiled_rigid): the offset in
+    # the row of u(v) (n), du/dv and dF/dv (n x n each), -1 where v = u (du/dv = I, dF/dv =
+    # K); and whether a closing gap blocks the chain (changing the coordinates, below)
+    G_COORD, G_BLOCKING = GEO["coordinates"], GEO["blocking"]
     # The case's p row: the kernel's parameter row (ROW entries), the work factor, then
     # the contact-state bits.  ctl: is_cycle, load offset, load slope, g's offset and
     # slope (n each), then a cycle's centre (2), radius, theta0, direction and plane (2
@@ -172,9 +176,13 @@ def general_part(rate_form: bool, cofactor_vector: Any, minimum_norm_step: Any) 
         matrix = ev[base:base + n * n].reshape(n, n)
         rate = ev[base + n * n:base + n * n + n]
         stiffness, has_load, load_slope = geo[G_STIFFNESS], geo[G_HASLOAD] > 0, ctl[2]
+        coordinates = geo[G_COORD]
         for i in range(n):
             for j in range(n):
-                matrix[i, j] = ev[stiffness + i * n + j] if fc[i] else (1.0 if i == j else 0.0)
+                if coordinates >= 0:  # rows of dF/dv where the force is controlled, of du/dv elsewhere
+                    matrix[i, j] = ev[coordinates + n + (n * n if fc[i] else 0) + i * n + j]
+                else:
+                    matrix[i, j] = ev[stiffness + i * n + j] if fc[i] else (1.0 if i == j else 0.0)
             _, rate[i] = control_at(lam, ctl, n, i)
             if has_load:
                 rate[i] = rate[i] - (ev[geo[G_LOAD] + i] if fc[i] else 0.0) * load_slope
@@ -191,10 +199,17 @@ def general_part(rate_form: bool, cofactor_vector: Any, minimum_norm_step: Any) 
         matrix, rate, c, work = control_system(fc, ctl, y[geo[G_N]], ev, geo)
         cofactor_vector(matrix, rate, c, work)
         det_m = c[n]
-        stiffness, load_rate = geo[G_STIFFNESS], 0.0
+        stiffness, load_rate, coordinates = geo[G_STIFFNESS], 0.0, geo[G_COORD]
         for i in range(n):
             aux[i] = c[i]
             aux[n + i] = c[i]
+        if coordinates >= 0:  # du = du/dv dv, dF = dF/dv dv
+            stiffness = coordinates + n + n * n
+            for i in range(n):
+                total = 0.0
+                for j in range(n):
+                    total += ev[coordinates + n + i * n + j] * c[j]
+                aux[n + i] = total
         for i in range(n):
             total = 0.0
             for j in range(n):
@@ -311,12 +326,13 @@ def general_part(rate_form: bool, cofactor_vector: Any, minimum_norm_step: Any) 
         n, forces = geo[G_N], geo[G_FORCES]
         residual = np.empty(n)
         step = np.empty(n + 1)
+        du = np.empty(n)
         for _ in range(newton_max_iter + 1):
             evaluate(y, ctl, law, p, geo, ev)
             size = 0.0
             for i in range(n):
                 path, _ = control_at(y[n], ctl, n, i)
-                residual[i] = (ev[forces + i] if fc[i] else y[i]) - path
+                residual[i] = (ev[forces + i] if fc[i] else displacement(y, ev, geo, i)) - path
                 a = abs(residual[i])
                 size = np.nan if (np.isnan(a) or np.isnan(size)) else max(size, a)
             if size <= newton_tol:
@@ -326,13 +342,48 @@ def general_part(rate_form: bool, cofactor_vector: Any, minimum_norm_step: Any) 
             matrix, rate, _, work = control_system(fc, ctl, y[n], ev, geo)
             if not minimum_norm_step(matrix, rate, residual, step, work):
                 least_squares_step(matrix, rate, residual, step)
-            power = work_power(ev, geo, step)  # (du = dv; F, P of the state before the step)
+            power = work_power(ev, geo, displacement_step(ev, geo, step, du))  # (F, P before the step)
             for i in range(n):
                 y[i] += step[i]
             y[n] += step[n]
             y[n + 1 + geo[G_NINT]] += p[geo[G_ROW]] * power
         evaluate(y, ctl, law, p, geo, ev)
         return False
+
+    @njit
+    def displacement(y, ev, geo, i):
+        # u_i at the evaluated state: v_i, or u(v)_i from the row (state coordinates)
+        return y[i] if geo[G_COORD] < 0 else ev[geo[G_COORD] + i]
+
+    @njit
+    def displacement_step(ev, geo, dv, du):
+        # du of a step dv: dv itself, or du/dv dv (state coordinates; into du)
+        n, coordinates = geo[G_N], geo[G_COORD]
+        if coordinates < 0:
+            return dv[:n]
+        for i in range(n):
+            total = 0.0
+            for j in range(n):
+                total += ev[coordinates + n + i * n + j] * dv[j]
+            du[i] = total
+        return du
+
+    @njit
+    def next_state(geo, secondary, bit, y):
+        # contacts.switch_contacts: the contact state after a switch of ``bit`` (the batch's
+        # close_contact).  Its bit toggles; in the pure-shear limit (rigid_model.close_contact)
+        # a closing gap blocks the free chain -- the state becomes that gap, alpha is frozen
+        # (the last internal variable) and v = (alpha, Nhat) becomes (Nhat, Rhat = 0) -- and
+        # a blocked chain stays as it is
+        if geo[G_BLOCKING] <= 0:
+            return secondary ^ bit
+        if secondary != 0:
+            return secondary
+        n = geo[G_N]
+        y[n + geo[G_NINT]] = y[0]
+        y[0] = y[1]
+        y[1] = 0.0
+        return bit
 
     @njit
     def least_squares_step(matrix, rate, residual, step):

@@ -18,10 +18,10 @@ __all__ = ["general_output_part"]
 
 
 def general_output_part(
-    G_BIFURCATION, G_CYCLE, G_DAMPING, G_DIVERGENCE, G_DOMAIN, G_FORCES, G_GAPCOL, G_GAPS, G_INTERACTIONS, G_MASS,
+    G_BIFURCATION, G_COLUMNS, G_COORD, G_CYCLE, G_DAMPING, G_DIVERGENCE, G_DOMAIN, G_FORCES, G_GAPCOL, G_GAPS, G_INTERACTIONS, G_MASS,
     G_N, G_NGAPS, G_NINT, G_NOPEN, G_NORMALCOL, G_OVERLAPS, G_SIZE, G_STIFFNESS, G_T, G_TARGET, G_TCOUNT,
-    G_TSTRIDE, G_TURNING, control_system, damped_onset, eigenvalue_discriminant, evaluate, frequency_discriminant,
-    njit, signed_gap, significant, target_indicator,
+    G_TSTRIDE, G_TURNING, control_system, damped_onset, displacement, eigenvalue_discriminant, evaluate,
+    frequency_discriminant, njit, signed_gap, significant, target_indicator,
 ) -> None:
     """Define the general model's indicators, domain check and storage (a template: see the module docstring)."""
 
@@ -91,6 +91,8 @@ def general_output_part(
         # events.indicator_values for a general layout without inertia; turn_end: 2 pi
         # (turns done + 1) in a cycle stage, else NaN
         n, lam = geo[G_N], y[geo[G_N]]
+        for c in range(geo[G_COLUMNS]):  # (a layout's column the model has no value for: NaN)
+            out[c] = np.nan
         stiffness_indicators(ev, fc, ctl, lam, geo, out)
         for g in range(geo[G_NGAPS]):
             out[geo[G_GAPCOL] + g] = signed_gap(ev[geo[G_GAPS] + g], secondary, 1 << g)
@@ -98,7 +100,8 @@ def general_output_part(
         for j in range(geo[G_NOPEN]):
             out[geo[G_NORMALCOL] + j] = signed_gap(ev[geo[G_OVERLAPS] + j], secondary, 1 << (geo[G_NGAPS] + j))
         # the dynamic divergence test: det M of the stage's control, for a system with inertia
-        out[geo[G_DIVERGENCE]] = out[2] if geo[G_MASS] >= 0 else np.nan
+        if geo[G_DIVERGENCE] >= 0:
+            out[geo[G_DIVERGENCE]] = out[2] if geo[G_MASS] >= 0 else np.nan
         out[geo[G_BIFURCATION]] = aux[3 * n + 4]
         out[geo[G_CYCLE]] = lam - turn_end
         out[geo[G_TARGET]] = target_indicator(lam, lam_end, target_sign)
@@ -128,15 +131,17 @@ def general_output_part(
         # over_steps.arc_length: the arc through the start y0, the middle y_half (evaluated in
         # ev on entry) and the end y_new (ev_new), in (u, F, lambda); ev left at the start
         n, forces = geo[G_N], geo[G_FORCES]
-        middle = np.empty(n)
+        middle = np.empty(2 * n)  # F, then u, at the middle
         for i in range(n):
             middle[i] = ev[forces + i]
+            middle[n + i] = displacement(y_half, ev, geo, i)
         evaluate(y0, ctl, law, p, geo, ev)
         whole, first, second = 0.0, 0.0, 0.0
         for i in range(n):
-            whole += (y_new[i] - y0[i]) ** 2
-            first += (y_half[i] - y0[i]) ** 2
-            second += (y_new[i] - y_half[i]) ** 2
+            start, end = displacement(y0, ev, geo, i), displacement(y_new, ev_new, geo, i)
+            whole += (end - start) ** 2
+            first += (middle[n + i] - start) ** 2
+            second += (end - middle[n + i]) ** 2
         for i in range(n):
             whole += (ev_new[forces + i] - ev[forces + i]) ** 2
             first += (middle[i] - ev[forces + i]) ** 2
@@ -167,7 +172,7 @@ def general_output_part(
         r_s[i, position] = arclength
         r_stage[i, position] = stage_number
         for k in range(n):
-            r_u[i, position, k] = y[k]
+            r_u[i, position, k] = displacement(y, ev, geo, k)
             r_f[i, position, k] = ev[geo[G_FORCES] + k]
             r_du[i, position, k] = aux[n + k]
             for j in range(n):
@@ -193,7 +198,7 @@ def general_output_part(
         row[4] = ev[geo[G_SIZE]]
         at = 5
         for k in range(n):
-            row[at + k] = y[k]
+            row[at + k] = displacement(y, ev, geo, k)
         at += n
         for k in range(n):
             row[at + k] = ev[geo[G_FORCES] + k]
