@@ -322,8 +322,10 @@ def test_damped_pendulums_flutter_on_the_compiled_loop_where_a_root_crosses_the_
 def test_one_dof_systems_run_on_the_compiled_loop_as_on_the_numpy_stepper():
     """Hencky's column of 2 links (1 dof; bifurcation at P = 2 exactly), perfect and with
     imperfection forces +-1e-3, and the transcritical one-dof system of test_bifurcations
-    (u = 0 and u = P - 1 crossing at P = 1) followed along every branch: the same
-    statuses, events and ends (1e-12, total forms) as the numpy stepper."""
+    (u = 0 and u = P - 1 crossing at P = 1) followed along its branch and switched onto
+    the other: the same statuses, events and ends (1e-12, total forms) as the numpy
+    stepper, the ends u = 0 and u = P - 1 = 1 at P = 2 (1e-12: projected onto equilibrium
+    to newton_tol, |dR/du| = 1 there)."""
     programme = [{"drive": {"F1": "eps"}}, {"hold": {"F1": "current"}, "drive": {"P": 3.0}}]
     numpy_run, default_run = _both(SystemSpec("column", links=2), None, programme, {"eps": [0.0, 1e-3, -1e-3]})
     _compare(numpy_run, default_run, end_tol=1e-12)
@@ -331,6 +333,9 @@ def test_one_dof_systems_run_on_the_compiled_loop_as_on_the_numpy_stepper():
     from test_bifurcations import _transcritical_system
 
     programme = [{"drive": {"P": 2.0}, "at_bifurcation": "branches"}]
-    numpy_run, default_run = _both(_transcritical_system(), None, programme, {})
+    # (branch -1 leaves along u = P - 1 toward lower P and never reaches the target: the
+    # numpy stepper takes minutes of steps to fail there, the loop a fraction of a second)
+    numpy_run, default_run = _both(_transcritical_system(), None, programme, {"branch": [0, 1]})
     _compare(numpy_run, default_run, end_tol=1e-12)
+    np.testing.assert_allclose(_ends(default_run, "u").ravel(), [0.0, 1.0], rtol=0, atol=1e-12)  # u = 0, u = P - 1
     np.testing.assert_allclose(default_run["bifurcation_load"].values, 1.0, rtol=0, atol=OPTIONS.event_tol)

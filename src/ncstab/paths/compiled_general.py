@@ -86,7 +86,8 @@ class GeneralStages(CompiledStages):
             **self._tangential_slots(batch),
         }
         row = np.array([values[name] for name in GEO], dtype=np.int64)
-        self.geometry = np.ascontiguousarray(np.broadcast_to(row, (size, row.size)))
+        # (writable: a read-only row, as broadcast_to gives for one case, is another type to numba)
+        self.geometry = np.tile(row, (size, 1))
         self.code = np.zeros(size, dtype=np.int64)
         self.detail = np.zeros(size, dtype=np.int64)
         self.width = layout.size - self.first_interaction

@@ -207,7 +207,7 @@ class RigidStages(GeneralStages):
             "coordinates": row["coordinates"], "blocking": 1,
         }
         geometry = np.array([values[name] for name in GEO], dtype=np.int64)
-        self.geometry = np.ascontiguousarray(np.broadcast_to(geometry, (size, geometry.size)))
+        self.geometry = np.tile(geometry, (size, 1))  # (writable: see GeneralStages)
         self.code = np.zeros(size, dtype=np.int64)
         self.detail = np.zeros(size, dtype=np.int64)
         self.width = 4
