@@ -20,15 +20,8 @@ def characteristic_polynomial(
 ) -> np.ndarray:
     """Real coefficients of p(s) = det(M s^2 + C s + K), highest degree first.
 
-    n = 1: ``[m, c, k]``.  n = 2, in closed form (each coefficient a sum of
-    products of entries, exact up to rounding)::
-
-        s^4: det M
-        s^3: M11 C22 + C11 M22 - M12 C21 - C12 M21
-        s^2: M11 K22 + C11 C22 + K11 M22 - M12 K21 - C12 C21 - K12 M21
-        s^1: C11 K22 + K11 C22 - C12 K21 - K12 C21
-        s^0: det K
-
+    n = 1: ``[m, c, k]``.  n = 2: closed forms, each coefficient a sum of products of
+    entries (listed in :func:`ncstab.operators.onset_cases.characteristic_coefficients`).
     n >= 3: interpolation of p at 2n + 1 points on a circle of radius the
     geometric mean of the root moduli, by a discrete Fourier transform (a
     unitary Vandermonde solve): each coefficient to a few eps of the largest

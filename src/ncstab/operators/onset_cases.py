@@ -28,7 +28,7 @@ from ncstab.generated_modules import compiled_module
 __all__ = [
     "characteristic_coefficients", "characteristic_rows", "damped_onset", "damped_onsets", "eigenvalue_discriminant",
     "eigenvalue_discriminants", "frequency_discriminant", "frequency_discriminants", "interpolated_coefficients",
-    "interpolated_rows",
+    "interpolated_rows", "regular_determinant",
 ]
 
 
@@ -53,6 +53,26 @@ def eigenvalue_discriminant(matrix):
     return product.real
 
 
+def regular_determinant(mass):
+    """det M where M is regular, else NaN (:func:`ncstab.operators.dynamic_matrices.regular_mass`:
+    |det M| > n eps prod_j |M_j|, the Euclidean norms of the columns; det M in closed form
+    for n <= 2, by LU beyond).  M must be finite."""
+    n = mass.shape[0]
+    if n == 1:
+        determinant = mass[0, 0]
+    elif n == 2:
+        determinant = mass[0, 0] * mass[1, 1] - mass[0, 1] * mass[1, 0]
+    else:
+        determinant = np.linalg.det(mass)
+    norms = 1.0
+    for j in range(n):
+        column = 0.0
+        for i in range(n):
+            column += mass[i, j] * mass[i, j]
+        norms *= np.sqrt(column)
+    return determinant if abs(determinant) > n * np.finfo(np.float64).eps * norms else np.nan
+
+
 def frequency_discriminant(mass, stiffness):
     """The discriminant of q(mu) = det(M mu + K), mu = s^2
     (:func:`ncstab.operators.frequency_discriminant`, whose vectorized closed forms for
@@ -68,17 +88,8 @@ def frequency_discriminant(mass, stiffness):
             if not (np.isfinite(mass[i, j]) and np.isfinite(stiffness[i, j])):
                 return np.nan
             identity = identity and mass[i, j] == (1.0 if i == j else 0.0)
-    if n == 2:
-        determinant = mass[0, 0] * mass[1, 1] - mass[0, 1] * mass[1, 0]
-    else:
-        determinant = np.linalg.det(mass)
-    norms = 1.0
-    for j in range(n):
-        column = 0.0
-        for i in range(n):
-            column += mass[i, j] * mass[i, j]
-        norms *= np.sqrt(column)
-    if not abs(determinant) > n * np.finfo(np.float64).eps * norms:
+    determinant = regular_determinant(mass)
+    if np.isnan(determinant):
         return np.nan
     if n == 1:
         return 1.0
@@ -195,21 +206,7 @@ def damped_onset(mass, damping, stiffness, coefficients, hurwitz):
     for i in range(n):
         for j in range(n):
             finite = finite and np.isfinite(mass[i, j]) and np.isfinite(damping[i, j]) and np.isfinite(stiffness[i, j])
-    if not finite:
-        return np.nan
-    if n == 1:
-        determinant = mass[0, 0]
-    elif n == 2:
-        determinant = mass[0, 0] * mass[1, 1] - mass[0, 1] * mass[1, 0]
-    else:
-        determinant = np.linalg.det(mass)
-    norms = 1.0
-    for j in range(n):
-        column = 0.0
-        for i in range(n):
-            column += mass[i, j] * mass[i, j]
-        norms *= np.sqrt(column)
-    if not abs(determinant) > n * np.finfo(np.float64).eps * norms:
+    if not finite or np.isnan(regular_determinant(mass)):
         return np.nan
     characteristic_coefficients(mass, damping, stiffness, coefficients)
     degree = 2 * n
@@ -253,7 +250,7 @@ def _onset_batch(masses, dampings, stiffnesses, out):
 def _compiled() -> Any:
     """This module's per-case functions compiled by numba (a generated module in the cache folder)."""
     return compiled_module(
-        __name__, eigenvalue_discriminant, frequency_discriminant, interpolated_coefficients,
+        __name__, regular_determinant, eigenvalue_discriminant, frequency_discriminant, interpolated_coefficients,
         characteristic_coefficients, damped_onset, _eigenvalue_batch, _frequency_batch, _characteristic_batch,
         _interpolated_batch, _onset_batch,
     )

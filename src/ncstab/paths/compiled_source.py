@@ -130,7 +130,8 @@ def general_loop_source(rate_form: bool) -> str:
     body = body.replace("cache=False", "cache=True").replace("return StageLoop(run_cases, start)", "LOOP = StageLoop(run_cases, start)")
     functions = compiled_functions(
         cofactor.work_size, cofactor._factor, cofactor._apply_q, cofactor.cofactor_vector, cofactor.minimum_norm_step,
-        onset_cases.eigenvalue_discriminant, onset_cases.frequency_discriminant, onset_cases.interpolated_coefficients,
+        onset_cases.regular_determinant, onset_cases.eigenvalue_discriminant, onset_cases.frequency_discriminant,
+        onset_cases.interpolated_coefficients,
         onset_cases.characteristic_coefficients, onset_cases.damped_onset,
     )
     header = f'''"""The compiled stage loop of the general models {"with" if rate_form else "without"} a rate form,
