@@ -57,12 +57,13 @@ class PathOptions:
         Width of the arclength bracket within which events are located.
     backend
         ``"auto"`` (default): the compiled stepper (numba, one compiled loop
-        per case on every core, :mod:`ncstab.paths.compiled`) where it covers
-        the programme and the system, the numpy stepper elsewhere; the
-        archive's ``engine`` attribute says which ran and why.
+        per case on every core, :mod:`ncstab.paths.compiled`), which covers
+        every system and programme (the numpy stepper only where numba is
+        missing); the archive's ``engine`` attribute says which ran.
         ``"compiled"``: the same, asked for explicitly (an error without
         numba).  ``"numpy"``: every case advances in numpy passes over the
-        batch.  Both steppers take the same steps to rounding.
+        batch, kept as a reference until retired.  Both steppers follow the
+        same paths to rounding.
     """
 
     rtol: float = 1e-10
