@@ -2,8 +2,9 @@
 
 The body of :func:`general_part` takes the place of the diamond's parts 1 and 1b
 (:mod:`ncstab.paths.loop_model`, :mod:`ncstab.paths.loop_diamond`) in the stage
-loop of a general model (any :class:`~ncstab.systems.SystemDefinition` of three
-dofs or more; :func:`ncstab.paths.compiled_source.general_loop_source`): the
+loop of a general model (any :class:`~ncstab.systems.SystemDefinition`, and the
+diamond's pure-shear limit, :mod:`ncstab.paths.compiled_rigid`;
+:func:`ncstab.paths.compiled_source.general_loop_source`): the
 shared parts (:mod:`ncstab.paths.loop_steps`, :mod:`~ncstab.paths.loop_step_limits`,
 :mod:`~ncstab.paths.loop_cases`) follow it unchanged.  One loop per form of law
 serves every general model: the sizes are the case's ``geo`` row (:data:`GEO`),
@@ -16,7 +17,7 @@ The cofactor tangent and the Newton correction are those of the numpy
 stepper for n > 2 dofs, one implementation: :func:`ncstab.paths.cofactor.cofactor_vector`
 and :func:`~ncstab.paths.cofactor.minimum_norm_step`, pasted into the module
 (tangent_field.path_tangent, projection.project; seed Eq. 30-34).  The
-indicators are events.indicator_values of a general layout without inertia.
+indicators are events.indicator_values of a general layout (part 1b).
 """
 
 from __future__ import annotations
@@ -39,7 +40,9 @@ GEO = {name: slot for slot, name in enumerate((
 ))}
 
 
-def general_part(rate_form: bool, cofactor_vector: Any, minimum_norm_step: Any) -> None:
+def general_part(
+    rate_form: bool, cofactor_vector: Any, minimum_norm_step: Any, displacement: Any, displacement_step: Any
+) -> None:
     """Define the general model's helpers (a template: see the module docstring).
 
     Parameters
@@ -48,6 +51,9 @@ def general_part(rate_form: bool, cofactor_vector: Any, minimum_norm_step: Any) 
         Whether some law of the model has no total form (no Newton projection).
     cofactor_vector, minimum_norm_step
         :mod:`ncstab.paths.cofactor`'s, pasted after this part.
+    displacement, displacement_step
+        Part 1b's (:mod:`ncstab.paths.loop_general_output`): u and du where the state
+        coordinates are not u.
     """
     njit = numba.njit(cache=False, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
     hot = numba.njit(cache=False, error_model="numpy", inline="always")
@@ -65,7 +71,7 @@ def general_part(rate_form: bool, cofactor_vector: Any, minimum_norm_step: Any) 
     # State coordinates v other than u (the pure-shear limit, compiled_rigid): the offset in
     # the row of u(v) (n), du/dv and dF/dv (n x n each), -1 where v = u (du/dv = I, dF/dv =
     # K); and whether a closing gap blocks the chain (changing the coordinates, below)
-    G_COORD, G_BLOCKING = GEO["coordinates"], GEO["blocking"]
+    G_COORD, G_BLOCKING = GEO["coordinates"], GEO["blocking"]  # noqa: F841 (read by part 1b)
     # The case's p row: the kernel's parameter row (ROW entries), the work factor, then
     # the contact-state bits.  ctl: is_cycle, load offset, load slope, g's offset and
     # slope (n each), then a cycle's centre (2), radius, theta0, direction and plane (2
@@ -349,41 +355,6 @@ def general_part(rate_form: bool, cofactor_vector: Any, minimum_norm_step: Any) 
             y[n + 1 + geo[G_NINT]] += p[geo[G_ROW]] * power
         evaluate(y, ctl, law, p, geo, ev)
         return False
-
-    @njit
-    def displacement(y, ev, geo, i):
-        # u_i at the evaluated state: v_i, or u(v)_i from the row (state coordinates)
-        return y[i] if geo[G_COORD] < 0 else ev[geo[G_COORD] + i]
-
-    @njit
-    def displacement_step(ev, geo, dv, du):
-        # du of a step dv: dv itself, or du/dv dv (state coordinates; into du)
-        n, coordinates = geo[G_N], geo[G_COORD]
-        if coordinates < 0:
-            return dv[:n]
-        for i in range(n):
-            total = 0.0
-            for j in range(n):
-                total += ev[coordinates + n + i * n + j] * dv[j]
-            du[i] = total
-        return du
-
-    @njit
-    def next_state(geo, secondary, bit, y):
-        # contacts.switch_contacts: the contact state after a switch of ``bit`` (the batch's
-        # close_contact).  Its bit toggles; in the pure-shear limit (rigid_model.close_contact)
-        # a closing gap blocks the free chain -- the state becomes that gap, alpha is frozen
-        # (the last internal variable) and v = (alpha, Nhat) becomes (Nhat, Rhat = 0) -- and
-        # a blocked chain stays as it is
-        if geo[G_BLOCKING] <= 0:
-            return secondary ^ bit
-        if secondary != 0:
-            return secondary
-        n = geo[G_N]
-        y[n + geo[G_NINT]] = y[0]
-        y[0] = y[1]
-        y[1] = 0.0
-        return bit
 
     @njit
     def least_squares_step(matrix, rate, residual, step):

@@ -1,7 +1,8 @@
 """Template, part 1b for a general model, of the compiled stage loop: indicators, domain and storage.
 
 Pasted after :func:`ncstab.paths.loop_general.general_part` (see that module):
-the event indicators (events.indicator_values of a general layout: det K, the
+u and du where the state coordinates are not u, the contact state after a switch
+(with the pure-shear limit's blocking), the event indicators (events.indicator_values of a general layout: det K, the
 least eigenvalue of K_sym, det M of the control, the flutter column without or
 with inertia, the gaps and overlaps signed by the contact state, dlambda, the
 divergence and branch tests, the end of a turn and the stage target), the
@@ -18,7 +19,7 @@ __all__ = ["general_output_part"]
 
 
 def general_output_part(
-    G_BIFURCATION, G_COLUMNS, G_COORD, G_CYCLE, G_DAMPING, G_DIVERGENCE, G_DOMAIN, G_FORCES, G_GAPCOL, G_GAPS, G_INTERACTIONS, G_MASS,
+    G_BIFURCATION, G_BLOCKING, G_COLUMNS, G_COORD, G_CYCLE, G_DAMPING, G_DIVERGENCE, G_DOMAIN, G_FORCES, G_GAPCOL, G_GAPS, G_INTERACTIONS, G_MASS,
     G_N, G_NGAPS, G_NINT, G_NOPEN, G_NORMALCOL, G_OVERLAPS, G_SIZE, G_STIFFNESS, G_T, G_TARGET, G_TCOUNT,
     G_TSTRIDE, G_TURNING, control_system, damped_onset, displacement, eigenvalue_discriminant, evaluate,
     frequency_discriminant, njit, signed_gap, significant, target_indicator,
@@ -125,6 +126,41 @@ def general_output_part(
         if not finite:
             return 0
         return int(ev_state[geo[G_DOMAIN]])
+
+    @njit
+    def displacement(y, ev, geo, i):
+        # u_i at the evaluated state: v_i, or u(v)_i from the row (state coordinates)
+        return y[i] if geo[G_COORD] < 0 else ev[geo[G_COORD] + i]
+
+    @njit
+    def displacement_step(ev, geo, dv, du):
+        # du of a step dv: dv itself, or du/dv dv (state coordinates; into du)
+        n, coordinates = geo[G_N], geo[G_COORD]
+        if coordinates < 0:
+            return dv[:n]
+        for i in range(n):
+            total = 0.0
+            for j in range(n):
+                total += ev[coordinates + n + i * n + j] * dv[j]
+            du[i] = total
+        return du
+
+    @njit
+    def next_state(geo, secondary, bit, y):
+        # contacts.switch_contacts: the contact state after a switch of ``bit`` (the batch's
+        # close_contact).  Its bit toggles; in the pure-shear limit (rigid_model.close_contact)
+        # a closing gap blocks the free chain -- the state becomes that gap, alpha is frozen
+        # (the last internal variable) and v = (alpha, Nhat) becomes (Nhat, Rhat = 0) -- and
+        # a blocked chain stays as it is
+        if geo[G_BLOCKING] <= 0:
+            return secondary ^ bit
+        if secondary != 0:
+            return secondary
+        n = geo[G_N]
+        y[n + geo[G_NINT]] = y[0]
+        y[0] = y[1]
+        y[1] = 0.0
+        return bit
 
     @njit
     def arc_through(y0, y_half, y_new, ev_new, ctl, law, p, geo, ev):
