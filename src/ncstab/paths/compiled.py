@@ -50,8 +50,9 @@ and :mod:`ncstab.paths.loop_diamond`, or a general model's
 the model at a state, the tangent, the projection, the indicators, what is
 stored), then the shared parts :mod:`ncstab.paths.loop_steps` (a DOP853 step,
 dense output, event location), :mod:`ncstab.paths.loop_step_limits` (the
-domain's edge, and the over step across a simple bifurcation point) and
-:mod:`ncstab.paths.loop_cases` (each case through its stage);
+domain's edge, and the over step across a simple bifurcation point),
+:mod:`ncstab.paths.loop_start` (a stage's start) and :mod:`ncstab.paths.loop_cases`
+(each case through its stage);
 :mod:`ncstab.paths.compiled_source` pastes them into one module, writes it to
 the cache and imports it.
 """

@@ -65,13 +65,14 @@ def loop_source(rate_form: bool) -> str:
         loop_diamond,
         loop_model,
         loop_signs,
+        loop_start,
         loop_step_limits,
         loop_steps,
     )
 
     parts = (
         loop_signs.signs_part, loop_model.model_part, loop_diamond.access_part, loop_steps.steps_part, loop_step_limits.limits_part,
-        loop_cases.cases_part,
+        loop_start.start_part, loop_cases.cases_part,
     )
     body = "\n".join(template_body(part) for part in parts)
     body = body.replace("cache=False", "cache=True").replace("return StageLoop(run_cases, start)", "LOOP = StageLoop(run_cases, start)")
@@ -118,13 +119,14 @@ def general_loop_source(rate_form: bool) -> str:
         loop_general,
         loop_general_output,
         loop_signs,
+        loop_start,
         loop_step_limits,
         loop_steps,
     )
 
     parts = (
         loop_signs.signs_part, loop_general.general_part, loop_general_output.general_output_part, loop_steps.steps_part,
-        loop_step_limits.limits_part, loop_cases.cases_part,
+        loop_step_limits.limits_part, loop_start.start_part, loop_cases.cases_part,
     )
     body = "\n".join(template_body(part) for part in parts)
     body = body.replace("cache=False", "cache=True").replace("return StageLoop(run_cases, start)", "LOOP = StageLoop(run_cases, start)")

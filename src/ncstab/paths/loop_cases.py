@@ -1,9 +1,10 @@
 """Template, part 4 of 4, of the compiled stage loop: each case through its stage.
 
 Pasted after :mod:`ncstab.paths.loop_model` and :mod:`ncstab.paths.loop_steps`
-(see the first): ``run_cases`` takes each case from its state to the end of its
-stage (target, stop event, failure, or a full recorder), ``start`` starts a
-stage.  The parameters of :func:`cases_part` are the names it uses from parts
+(see the first) and :mod:`ncstab.paths.loop_start` (``start``, which starts a
+stage): ``run_cases`` takes each case from its state to the end of its
+stage (target, stop event, failure, a full recorder, or a bifurcation point
+where the stage switches branch).  The parameters of :func:`cases_part` are the names it uses from parts
 1 and 2 (it is never called).
 """
 
@@ -23,7 +24,7 @@ def cases_part(
     dense_coefficients, dense_value, domain_detail, dop853, drop_limit_at_bifurcation, ev_size, first_column,
     indicators, initial_step_size, last_admissible, locate, motion, motion_product, motion_size,
     next_degenerate_length, next_over_length, next_state, over_step, piece_count, project, rhs, set_reference, set_state,
-    sign, state_size, store_event, store_record, switch_bit, target_col, tries_degenerate, turn_record,
+    sign, start, state_size, store_event, store_record, switch_bit, target_col, tries_degenerate, turn_record,
 ) -> StageLoop:
     """Define ``run_cases`` and ``start`` and return them (a template: see the module docstring)."""
     entry_probe, entry_noise = ENTRY_PROBE, ENTRY_NOISE
@@ -373,41 +374,5 @@ def cases_part(
                     offset = end_at
                 if ended:
                     break
-
-    @numba.njit(cache=False, error_model="numpy")
-    def start(cases, y, derivative, indicator_table, arclength, force_controlled, control_rows, lam_end,
-              target_sign, orientation, reference, secondary_state, cycles_done, law, parameters, geometry,
-              stage_number, recorded, record_count, step_size, probe, rtol, atol):
-        """Cases ``cases`` start their (set up) stage: dy/ds, indicators, state stored
-        (stage_entry._start_stage); the first step where ``step_size`` is NaN
-        (stage_entry._estimate_first_steps)."""
-        if cases.size == 0:
-            return
-        first = geometry[cases[0]]
-        M, n_motion = state_size(y[cases[0]]), motion_size(first)
-        state = np.empty(M)
-        ev = np.empty(ev_size(first))
-        aux = np.empty(aux_size(first))
-        f1 = np.empty(M)
-        orient = np.empty(1 + n_motion)
-        for i in cases:
-            orient[0] = orientation[i]
-            for k in range(n_motion):
-                orient[1 + k] = reference[i, k]
-            for j in range(M):
-                state[j] = y[i, j]
-            fc, ctl, geo = force_controlled[i], control_rows[i], geometry[i]
-            turn_end = 2 * np.pi * (cycles_done[i] + 1) if ctl[0] > 0 else np.nan
-            set_state(parameters[i], geo, secondary_state[i])
-            rhs(state, fc, ctl, orient, law, parameters[i], geo, derivative[i], ev, aux)
-            indicators(ev, aux, state, fc, ctl, geo, lam_end[i], target_sign[i], turn_end, secondary_state[i],
-                       indicator_table[i])
-            store_record(recorded, i, record_count[i], arclength[i], stage_number, state, ev, aux, geo)
-            record_count[i] += 1
-            if np.isnan(step_size[i]):
-                for j in range(M):
-                    state[j] = y[i, j] + probe * derivative[i, j]
-                rhs(state, fc, ctl, orient, law, parameters[i], geo, f1, ev, aux)
-                step_size[i] = initial_step_size(y[i], derivative[i], f1, probe, rtol, atol)
 
     return StageLoop(run_cases, start)
