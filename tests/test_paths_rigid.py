@@ -140,7 +140,9 @@ def test_the_pure_shear_limit_runs_on_the_compiled_loop_as_on_the_numpy_stepper(
     """The pure-shear limit runs by default on the general models' compiled loop
     (ncstab.paths.compiled_rigid: state coordinates (alpha, Nhat), then (Nhat, Rhat) once
     a gap blocks the chain).  Against the numpy stepper, for a rotational, a rate and a
-    translational law at two alpha0, blocked (activate) or stopped at the contact: the
+    translational law at two alpha0, blocked (activate) or stopped at the contact (both
+    evaluate the state by the same compiled kernel, so this checks the loop's stepping,
+    switching and blocking; the closed forms above check the kernel): the
     same statuses, the events and the ends to 1e-12 (sums in another order: measured
     3e-15; each event a root located to event_tol on paths that agree far closer, each end
     at the stage's target, projected onto equilibrium for the total forms).  The stored

@@ -12,9 +12,10 @@ and changing the coordinates (``next_state``).
 The kernel is printed per law (:func:`rigid_kernel_source`) from the law's
 pure-shear limit (:func:`ncstab.symbolic.rigid.rigid_limit`: lbar(alpha) and
 its derivative, That(alpha, Nhat) and its derivatives for a total form, or
-dThat/dalpha along the constraint for a rate form), each formula of
-``RigidCaseBatch.evaluate`` written once more for one case, and cached in the
-folder of the compiled modules; :class:`RigidStages` binds it to the loop.
+dThat/dalpha along the constraint for a rate form; seed Eq. 3, 4, 61-65) and
+cached in the folder of the compiled modules.  It is the one implementation of
+the limit's state: :class:`RigidStages` binds its C callback to the loop, and
+``RigidCaseBatch.evaluate`` reads a batch's rows from it (:func:`rigid_rows`).
 """
 
 from __future__ import annotations
@@ -37,7 +38,7 @@ if TYPE_CHECKING:
     from ncstab.paths.compiled import StageLoop
     from ncstab.paths.rigid_model import RigidCaseBatch
 
-__all__ = ["RigidStages", "rigid_callback", "rigid_kernel_source", "rigid_row"]
+__all__ = ["RigidStages", "rigid_kernel_source", "rigid_module", "rigid_row", "rigid_rows"]
 
 #: The kernel's row, per form: its pieces in order and their lengths (n = 2).
 _PIECES = ("forces", "stiffness", "load", "gradient", "gaps", "domain", "coordinates", "interactions")
@@ -67,7 +68,7 @@ def _printed(expression: sp.Expr) -> str:
 def rigid_kernel_source(law: Any) -> str:
     """The text of the module whose ``case`` (a C callback of
     :data:`ncstab.operators.model_kernel_layout.KERNEL_SIGNATURE`) fills the rigid kernel's
-    row of one case (:func:`rigid_row`), following ``RigidCaseBatch.evaluate``; ``law`` is
+    row of one case (:func:`rigid_row`; ``fill``, which ``evaluate_batch`` runs over a batch); ``law`` is
     the law's definition (:class:`ncstab.laws.definition.LawDefinition`)."""
     from ncstab.laws.definition import ALPHA, ALPHA0
     from ncstab.operators.model_kernel_layout import KERNEL_SIGNATURE
@@ -110,13 +111,8 @@ import numpy
 import numpy as np
 
 
-@numba.cfunc("{KERNEL_SIGNATURE}", cache=True, error_model="numpy")
-def case(v_pointer, internal_pointer, load, state, p_pointer, out_pointer, scratch_pointer):
-    v = numba.carray(v_pointer, (2,))
-    internal = numba.carray(internal_pointer, ({row["n_internal"]},))
-    p = numba.carray(p_pointer, (1,))
-    out = numba.carray(out_pointer, ({row["size"]},))
-    alpha0 = p[0]
+@numba.njit(cache=True, error_model="numpy")
+def fill(v, internal, state, alpha0, out):
     free = state == 0
     alpha = v[0] if free else internal[{row["n_internal"] - 1}]
     reaction = v[1] if free else v[0]
@@ -159,16 +155,44 @@ def case(v_pointer, internal_pointer, load, state, p_pointer, out_pointer, scrat
     out[{at} + 1] = alpha
     out[{at} + 2] = reaction
     out[{at} + 3] = tangential
+
+
+@numba.cfunc("{KERNEL_SIGNATURE}", cache=True, error_model="numpy")
+def case(v_pointer, internal_pointer, load, state, p_pointer, out_pointer, scratch_pointer):
+    p = numba.carray(p_pointer, (1,))
+    fill(numba.carray(v_pointer, (2,)), numba.carray(internal_pointer, ({row["n_internal"]},)), state, p[0],
+         numba.carray(out_pointer, ({row["size"]},)))
+
+
+@numba.njit(cache=True, error_model="numpy")
+def evaluate_batch(v, internal, state, alpha0, out):
+    for b in range(out.shape[0]):
+        fill(v[b], internal[b], state[b], alpha0[b], out[b])
 '''
 
 
 @functools.cache
-def rigid_callback(law: Any) -> Any:
-    """The compiled ``case`` of a law's kernel module (printed once per law and process;
-    compiled once per machine, in the folder of the compiled modules)."""
+def rigid_module(law: Any) -> Any:
+    """A law's kernel module (printed once per law and process; compiled once per machine,
+    in the folder of the compiled modules): ``case``, the loop's C callback, and
+    ``evaluate_batch``, the same rows for a batch (``RigidCaseBatch.evaluate``)."""
     source = rigid_kernel_source(law)
     digest = hashlib.sha256((source + numba.__version__ + np.__version__).encode()).hexdigest()[:20]
-    return load_named_module(f"ncstab_rigid_{digest}", lambda: source).case
+    return load_named_module(f"ncstab_rigid_{digest}", lambda: source)
+
+
+def rigid_rows(law: Any, v: np.ndarray, internal: np.ndarray, state: np.ndarray, alpha0: np.ndarray) -> np.ndarray:
+    """The kernel's rows ``(B, size)`` of a batch (:func:`rigid_row`), one case after the other."""
+    from ncstab.symbolic.rigid import rigid_limit
+
+    size = rigid_row(rigid_limit(law).tangential is None)["size"]
+    out = np.empty((v.shape[0], size))
+    if out.shape[0]:
+        rigid_module(law).evaluate_batch(
+            np.ascontiguousarray(v, dtype=float), np.ascontiguousarray(internal, dtype=float),
+            np.ascontiguousarray(state, dtype=np.int64), np.ascontiguousarray(alpha0, dtype=float), out,
+        )
+    return out
 
 
 class RigidStages(GeneralStages):
@@ -189,7 +213,7 @@ class RigidStages(GeneralStages):
         rate_form = not batch.has_total_form
         row = rigid_row(rate_form)
         self.runner, self.starter = loop.run, loop.start
-        self.law = rigid_callback(batch.law.definition)
+        self.law = rigid_module(batch.law.definition).case
         self.batch = batch
         # p: alpha0, the work factor, the contact state (0 free, else the blocking gap's bit)
         alpha0 = np.broadcast_to(np.asarray(batch._alpha0, dtype=float), (size,))

@@ -94,56 +94,25 @@ class RigidCaseBatch(DiamondBatchTraits):
         geometry_only: bool = False,
         load: np.ndarray | None = None,
     ) -> Evaluation:
-        """u(v), F(v), their Jacobians and the contact state (seed Eq. 3, 4, 61-65).
+        """u(v), F(v), their Jacobians and the contact state (seed Eq. 3, 4, 61-65), from the
+        law's compiled kernel (:func:`ncstab.paths.compiled_rigid.rigid_rows`, the compiled
+        stepper's too).
 
         ``geometry_only`` and ``load`` are ignored (everything is cheap here; no load).
         """
+        from ncstab.paths.compiled_rigid import rigid_row, rigid_rows
+
         size = v.shape[0]
         blocked = np.zeros(size, dtype=int) if blocked is None else blocked
-        free = blocked == FREE
-        alpha = np.where(free, v[:, 0], internal[:, -1])
-        reaction = np.where(free, v[:, 1], v[:, 0])
-        contact_reaction = np.where(free, 0.0, v[:, 1])
-        alpha0 = np.broadcast_to(self._alpha0, (size,))
-        length, dlength = self.rigid.branch_length(alpha, alpha0)
-        c, s = np.cos(alpha), np.sin(alpha)
-        if self.has_total_form:
-            tangential, t_alpha, t_reaction = self.rigid.tangential_force(alpha, reaction, alpha0)
-        else:
-            tangential = internal[:, 0]
-            t_alpha = self.rigid.tangential_rate_along(alpha, alpha0)
-            t_reaction = np.zeros(size)
-        u = np.column_stack([np.cos(alpha0) - length * c, np.sin(alpha0) - length * s])
-        forces = np.column_stack(
-            [
-                2 * reaction * c + 2 * tangential * s + contact_reaction * (blocked == TOP_BOTTOM),
-                2 * reaction * s - 2 * tangential * c + contact_reaction * (blocked == LEFT_RIGHT),
-            ]
-        )
-        du_dalpha = np.column_stack([-dlength * c + length * s, -dlength * s - length * c])
-        df_dalpha = np.column_stack(
-            [
-                -2 * reaction * s + 2 * t_alpha * s + 2 * tangential * c,
-                2 * reaction * c - 2 * t_alpha * c + 2 * tangential * s,
-            ]
-        )
-        df_dreaction = np.column_stack([2 * c + 2 * t_reaction * s, 2 * s - 2 * t_reaction * c])
-        df_dcontact = np.column_stack([(blocked == TOP_BOTTOM), (blocked == LEFT_RIGHT)]).astype(float)
-        zeros = np.zeros((size, 2))
-        du_dv = np.where(free[:, None, None], np.stack([du_dalpha, zeros], -1), 0.0)
-        df_dv = np.where(
-            free[:, None, None],
-            np.stack([df_dalpha, df_dreaction], -1),
-            np.stack([df_dreaction, df_dcontact], -1),
-        )
-        gaps = np.column_stack([2 * length * c - 1, 2 * length * s - 1])
-        gaps[blocked == TOP_BOTTOM, 0] = 0.0
-        gaps[blocked == LEFT_RIGHT, 1] = 0.0
-        q = np.stack([length, alpha], -1)[:, None, :]
-        stiffness = np.full((size, 2, 2), np.nan)
+        alpha0 = np.broadcast_to(np.asarray(self._alpha0, dtype=float), (size,))
+        rows = rigid_rows(self.law.definition, v, internal, blocked, alpha0)
+        at = rigid_row(not self.has_total_form)
+        u, du, df, q = at["coordinates"], at["coordinates"] + 2, at["coordinates"] + 6, at["interactions"]
         return Evaluation(
-            q, reaction[:, None], tangential[:, None], u, forces, stiffness, du_dv, df_dv, gaps,
-            np.full(size, np.nan),
+            rows[:, None, q : q + 2], rows[:, q + 2 : q + 3], rows[:, q + 3 : q + 4], rows[:, u : u + 2],
+            rows[:, 0:2], rows[:, at["stiffness"] : at["stiffness"] + 4].reshape(size, 2, 2),
+            rows[:, du : du + 4].reshape(size, 2, 2), rows[:, df : df + 4].reshape(size, 2, 2),
+            rows[:, at["gaps"] : at["gaps"] + 2], np.full(size, np.nan),
         )
 
     def internal_rate(self, evaluation: Evaluation, dv: np.ndarray, blocked: np.ndarray | None = None) -> np.ndarray:
