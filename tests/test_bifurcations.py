@@ -170,17 +170,16 @@ TURCO_PROGRAMME = [
 ]
 
 
-def _turco_gamma_2(max_step: float, backend: str = "auto"):
+def _turco_gamma_2(max_step: float):
     path = follow(
         SystemSpec(secondary_contacts="ignore"), "turco", TURCO_PROGRAMME,
         {"gamma": 2.0, "F2l": 0.0, "alpha0": np.pi / 4},
-        PathOptions(max_step=max_step, sample_step=0.05, backend=backend),
+        PathOptions(max_step=max_step, sample_step=0.05),
     )
     return path.to_dataset().squeeze()
 
 
-@pytest.mark.parametrize("backend", ["auto", "numpy"])
-def test_turco_gamma_2_meets_a_simple_bifurcation_point_known_in_closed_form(backend):
+def test_turco_gamma_2_meets_a_simple_bifurcation_point_known_in_closed_form():
     """The located bifurcation is the closed form's (tests/turco_bifurcation.py): alpha =
     3 pi/8, l = sin(pi/8), F = (2 sqrt 2, 0), K = diag(8 + 4 sqrt 2, 0), so K21 = K22 = 0
     and [M | g'] loses rank under F2 held: two branches cross.  It is a `bifurcation`,
@@ -191,7 +190,7 @@ def test_turco_gamma_2_meets_a_simple_bifurcation_point_known_in_closed_form(bac
     u, F, K = turco_bifurcation.bifurcation_point()
     np.testing.assert_allclose(F, [2 * np.sqrt(2), 0.0], atol=1e-14)
     np.testing.assert_allclose(K, [[8 + 4 * np.sqrt(2), 0.0], [0.0, 0.0]], atol=1e-13)
-    ds = _turco_gamma_2(1.0, backend)
+    ds = _turco_gamma_2(1.0)
     assert str(ds["status"].item()) == "finished"
     np.testing.assert_allclose(ds["bifurcation_u"].values, u, atol=1e-8)
     np.testing.assert_allclose(ds["bifurcation_F"].values, F, atol=1e-8)
@@ -203,8 +202,7 @@ def test_turco_gamma_2_meets_a_simple_bifurcation_point_known_in_closed_form(bac
         assert abs(float(ds[f"{event}_s"]) - float(ds["bifurcation_s"])) <= 1e-9
 
 
-@pytest.mark.parametrize("backend", ["auto", "numpy"])
-def test_turco_gamma_2_steps_over_its_bifurcation_point_along_its_branch_whatever_the_steps(backend):
+def test_turco_gamma_2_steps_over_its_bifurcation_point_along_its_branch_whatever_the_steps():
     """At a simple bifurcation point the path goes on along the branch it was on
     (at_bifurcation = "continue"), whatever the steps (ncstab.paths.over_steps).  Before
     over steps, max_step 0.05 came out on the crossing branch of neutral equilibria
@@ -219,7 +217,7 @@ def test_turco_gamma_2_steps_over_its_bifurcation_point_along_its_branch_whateve
     u_end, F_end = turco_bifurcation.equilibrium(0.6, 0.40)
     located = []
     for max_step in (1.0, 0.05, 0.01, 0.002):
-        ds = _turco_gamma_2(max_step, backend)
+        ds = _turco_gamma_2(max_step)
         assert str(ds["status"].item()) == "finished"
         last = int(ds["n_steps"]) - 1
         np.testing.assert_allclose(ds["u"].values[last], u_end, rtol=0, atol=1e-10)
@@ -229,21 +227,19 @@ def test_turco_gamma_2_steps_over_its_bifurcation_point_along_its_branch_whateve
     assert np.ptp(located) <= 1e-9, located
 
 
-@pytest.mark.parametrize("backend", ["auto", "numpy"])
 @pytest.mark.parametrize(("direction", "guess"), [(1, 0.55), (-1, 0.16)])
-def test_turco_gamma_2_switches_onto_the_branch_of_neutral_equilibria(direction, guess, backend):
-    """at_bifurcation = switch on the reduced diamond (on either engine: the compiled loop
-    returns the case at the point, and the stepper leaves along the branch, as the numpy
-    stepper does, cut_points.switch_branches_at): from the point, the path follows the crossing branch,
-    on which F1* = 2 sqrt 2 and F2* = 0 all along (so det K = 0 on it), either way, to
-    D1* = 0.6.  Expected: F1* constant to 1e-10 after the point (every state projected to
+def test_turco_gamma_2_switches_onto_the_branch_of_neutral_equilibria(direction, guess):
+    """at_bifurcation = switch on the reduced diamond (the compiled loop returns the case
+    at the point, and the path leaves along the branch, branch_switching.leave_along_branch):
+    from the point, the path follows the crossing branch, on which F1* = 2 sqrt 2 and
+    F2* = 0 all along (so det K = 0 on it), either way, to D1* = 0.6.  Expected: F1* constant to 1e-10 after the point (every state projected to
     newton_tol = 1e-12), and the end state the closed-form equilibrium F2 = 0 at D1* = 0.6
     on that branch (Newton on the energy from D2* = 0.55 or 0.16; the branch followed
     before the point ends at 0.405), to 1e-10."""
     programme = [TURCO_PROGRAMME[0], {**TURCO_PROGRAMME[1], "at_bifurcation": {"switch": True, "direction": direction}}]
     path = follow(SystemSpec(secondary_contacts="ignore"), "turco", programme,
-                  {"gamma": 2.0, "F2l": 0.0, "alpha0": np.pi / 4}, PathOptions(backend=backend))
-    assert path.results[0].engine.startswith("compiled stepper (" if backend == "auto" else "numpy stepper")
+                  {"gamma": 2.0, "F2l": 0.0, "alpha0": np.pi / 4}, PathOptions())
+    assert path.results[0].engine.startswith("compiled stepper (numba ")
     ds = path.to_dataset().squeeze()
     assert str(ds["status"].item()) == "finished"
     n = int(ds["n_steps"])

@@ -1,25 +1,30 @@
-"""The compiled (numba) stepper, ``PathOptions(backend="compiled")``.
+"""The compiled (numba) stepper, the path engine of ``follow`` for the diamond chain.
 
-The compiled stepper mirrors the numpy stepper (:class:`ncstab.paths.stepper.BatchStepper`)
-step for step: same DOP853 tableau, step-size control, Newton projection,
-Illinois event location, first-event tables, stops and failures.  It is checked
+Every check holds the engine to something it did not compute itself:
 
-1. against the numpy stepper on the four smooth laws and several programmes
-   (limit points, Hill loss, controllability loss, secondary contacts that
-   stop or are only recorded, ``max_steps`` failures, many small steps);
-2. for its fallback: what it does not cover runs the numpy code, bitwise;
-3. against the seed directly: the McNamara limit point (maximum of Eq. 53) and
-   a scipy integration of the Cundall--Strack rate form (Eq. 38);
-4. for batch independence: a case alone and inside a batch give the same bits;
-5. for option validation (``PathOptions.backend``, study files).
+1. the seed directly: the McNamara limit point (maximum of Eq. 53), a scipy
+   integration of the Cundall--Strack rate form (Eq. 38), and the singular
+   point of Turco's chain at gamma = 2 (the double root of Eq. 56, crossed
+   from the branch of Eq. 58 onto the other root of Eq. 57);
+2. located switches, by the kinematics of seed Eq. (1): a secondary contact
+   is located where its gap is zero (and nothing closed before it), a
+   no_tension contact opens and closes where its overlap (Eq. 15, 28) is zero,
+   with N = <overlap> at every stored state; cycle stages close each turn
+   and show Green's paradox (no work over a turn for the hyperelastic laws,
+   work for the hypoelastic ones, forces that do not come back for
+   Cundall--Strack);
+3. the step options: ``sample_step`` pieces, ``max_steps`` counting steps and
+   not their pieces, ``min_step`` failing a case;
+4. batch independence: a case alone and inside a batch give the same bits;
+5. option validation (``PathOptions.backend``, study files), the engine named
+   in the archive, the loop's cache.
 
 numba compiles each law's loop once per process (a few seconds per law), so
-every path is followed once (module-level cache) and shared by the tests.
+the shared paths are followed once (module-level cache).
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import sys
 import tempfile
@@ -33,9 +38,7 @@ from scipy.optimize import minimize_scalar
 pytest.importorskip("numba")
 
 from ncstab.paths import PathOptions, SystemSpec, follow
-from ncstab.paths.api import ParameterGrid, case_batch
-from ncstab.paths.programme import parse_programme
-from ncstab.systems.closed_forms import mcnamara_load_rotation
+from ncstab.systems.closed_forms import mcnamara_load_rotation, turco_load_rotation
 
 ALPHA0 = math.pi / 4
 IGNORE = SystemSpec(secondary_contacts="ignore")
@@ -43,131 +46,39 @@ STOP = SystemSpec(secondary_contacts="stop")
 ACTIVATE = SystemSpec(secondary_contacts="activate")
 LAWS = ("cundall_strack", "weakly_hypoelastic", "mcnamara", "turco")
 
-#: Backends compared.  Both take the same steps (same tableau, same
-#: accept/reject decisions, same event brackets), so the differences start as
-#: rounding (~1e-16: numpy's SIMD transcendental functions against numba's
-#: libm) and are propagated over at most a few hundred steps of a stable
-#: integration, through Newton projections and event location.  Values that
-#: do not depend on where the path is sampled (located events, and stored
-#: states moved to the same arclength, see SHIFT_TOL) agree to ~1e-14; rtol
-#: 1e-9 / atol 1e-11 leave orders of magnitude of margin and still catch any
-#: difference of algorithm (another step, bracket or Newton count moves values
-#: by 1e-10 .. 1e-3).
-RTOL = 1e-9
-ATOL = 1e-11
-#: The stored states themselves are sampled at arclengths s that differ by
-#: more than rounding: the DOP853 error estimate is a difference of O(h)
-#: stage sums that cancels to ~1e-12, so a rounding difference of the state
-#: (1e-16) changes the error norm by ~1e-7 relative and the next step length
-#: (h ~ err^(-1/8)) by ~1e-8 relative (measured on the preload programme:
-#: steps identical to the bit for 110 steps, then relative step differences
-#: of 1e-8 with states that differ by 1e-16).  The step-size controller does
-#: not amplify these (h err^(-1/8) with err ~ h^8 is dead-beat), so the offsets
-#: are a random walk of ~1e-10 per step: observed up to 6e-9 over 200 steps.
-#: Each stored value is compared after moving it along the path by that
-#: offset (first order, with the stored tangent where there is one, else
-#: bounded by twice the local rate along the path).
-SHIFT_TOL = 1e-7
-
 UNIAXIAL = [{"hold": {"F2": 0.0}, "drive": {"D1": 0.2}}]
 PRELOAD = [
     {"hold": {"F1": 0.0}, "drive": {"F2": "F2_lateral"}},
     {"hold": {"F2": "current"}, "drive": {"D1": 0.6}},
 ]
 PRELOAD_STOP = [PRELOAD[0], {**PRELOAD[1], "stop_at": ["limit_point"]}]
-#: Top and bottom grains touch where 2 l cos(alpha) = 1, i.e. (F2 = 0 held)
-#: Delta_1 = cos(alpha0) - 1/2: from 0.325 (alpha0 = 0.6) to 0.04 (alpha0 = 1.0),
-#: all before Delta_1 = 0.4.
-CONTACT = [{"hold": {"F2": 0.0}, "drive": {"D1": 0.4}}]
 
 UNIAXIAL_GRID = {"gamma": list(np.linspace(0.1, 2.0, 4)), "alpha0": list(np.linspace(0.3, 1.2, 4))}
 #: 64 cases; low gamma and high F2* reach limit points, Hill loss and
 #: controllability loss (seed Fig. 9-11); gamma = 0.5, F2* = 0.75 is the
-#: McNamara limit point of test 3; F2* = 0 makes the first stage zero-length.
-#: Not gamma = 2: Turco at gamma = 2, F2* = 0 runs into a singular point near
-#: Delta = (0.56, 0.35) where K21 and K22 vanish together (the tangent is
-#: 0/0): the numpy stepper crawls through it with 29 rejected steps and step
-#: lengths down to 3e-8; its error norms jump between 1e-7 and 1e6 from one
-#: trial step to the next, so rounding is amplified without bound, and the
-#: backends' step sequences part (28 against 29 rejections): two backends
-#: cannot be compared step by step there.
+#: McNamara limit point of test 1; F2* = 0 makes the first stage zero-length.
 PRELOAD_GRID = {
     "gamma": [0.1, 0.25, 0.4, 0.5, 0.75, 1.0, 1.5, 1.9],
     "alpha0": ALPHA0,
     "F2_lateral": [0.0, 0.2, 0.4, 0.5, 0.6, 0.7, 0.75, 0.8],
 }
-CONTACT_GRID = {"gamma": [0.5, 2.0], "alpha0": list(np.linspace(0.6, 1.0, 8))}
 
-#: Long steps stored in pieces (see the "pieces_*" programmes).
-PIECES = PathOptions(max_step=0.5, sample_step=0.02)
-
-#: name -> (system, programme, parameters, options)
-PROGRAMMES = {
-    "uniaxial": (IGNORE, UNIAXIAL, UNIAXIAL_GRID, PathOptions()),
-    "preload": (IGNORE, PRELOAD, PRELOAD_GRID, PathOptions()),
-    "preload_stop_limit": (IGNORE, PRELOAD_STOP, PRELOAD_GRID, PathOptions()),
-    "contact_stop": (STOP, CONTACT, CONTACT_GRID, PathOptions()),
-    "contact_ignore": (IGNORE, CONTACT, CONTACT_GRID, PathOptions()),
-    # The secondary springs switch on where a gap closes (a located switch that
-    # cuts the step, may flip the orientation, and goes on on the other branch).
-    "contact_activate": (ACTIVATE, CONTACT, {**CONTACT_GRID, "kappa": [1.0, 3.0]}, PathOptions()),
-    "preload_activate": (
-        ACTIVATE, PRELOAD, {"gamma": [0.1, 1.0, 2.0], "alpha0": [0.6, 0.8, 1.0], "F2_lateral": [0.0, 0.6]},
-        # A McNamara case chatters at a contact (it opens and closes at every step):
-        # bounded here, it fails with max_steps on both steppers.
-        PathOptions(max_steps=400),
-    ),
-    # With steps of at most 0.02, n_steps of the uniaxial cases is 17..48: some fail, some finish.
-    "max_steps": (IGNORE, UNIAXIAL, UNIAXIAL_GRID, PathOptions(max_steps=25, max_step=0.02)),
-    # Delta_1 = 1.2 > cos(alpha0): the top grain would pass the chain's centre,
-    # failed:left_domain.  Not gamma = 2: there McNamara and Turco go on to
-    # l* -> 0 (K11 ~ 1e4), where the error norm amplifies rounding by ~1e6,
-    # and fail with step_size_underflow after step sequences that rounding
-    # decides (the "step_underflow" programme fails on purpose instead).
-    "leave_domain": (
-        IGNORE,
-        [{"hold": {"F2": 0.0}, "drive": {"D1": "D1_end"}}],
-        {"gamma": 0.5, "alpha0": [0.6, ALPHA0], "D1_end": [0.3, 1.2]},
-        PathOptions(),
-    ),
-    # Steps of 0.1 that cannot shrink below 0.03: a rejected step near a limit
-    # point or a sharp turn fails the case with step_size_underflow.
-    "step_underflow": (
-        IGNORE,
-        PRELOAD,
-        {"gamma": [0.1, 0.5, 1.0, 1.9], "alpha0": ALPHA0, "F2_lateral": [0.0, 0.4, 0.75]},
-        PathOptions(initial_step=0.1, max_step=0.1, min_step=0.03),
-    ),
-    # 150 to 450 steps per case.
-    "small_max_step": (
-        IGNORE, UNIAXIAL, {"gamma": [0.1, 2.0], "alpha0": list(np.linspace(0.3, 1.2, 4))}, PathOptions(max_step=0.002)
-    ),
-    # Steps as long as the tolerance allows, cut into pieces of at most 0.02 on the
-    # interpolant (PathOptions.sample_step): stored states and sign checks at the
-    # pieces' ends, crossings located and steps cut inside a piece.
-    "pieces_preload_stop_limit": (IGNORE, PRELOAD_STOP, PRELOAD_GRID, PIECES),
-    "pieces_contact_activate": (ACTIVATE, CONTACT, {**CONTACT_GRID, "kappa": [1.0, 3.0]}, PIECES),
-    "pieces_max_steps": (IGNORE, UNIAXIAL, UNIAXIAL_GRID, dataclasses.replace(PIECES, max_steps=3)),
+#: name -> (programme, parameters): the paths shared by several tests.
+RUNS = {
+    "uniaxial": (UNIAXIAL, UNIAXIAL_GRID),
+    "preload": (PRELOAD, PRELOAD_GRID),
+    "preload_stop_limit": (PRELOAD_STOP, PRELOAD_GRID),
 }
 
-_CACHE: dict[tuple[str, str, str], object] = {}
+_CACHE: dict[tuple[str, str], object] = {}
 
 
-def compiled(options: PathOptions) -> PathOptions:
-    return dataclasses.replace(options, backend="compiled")
-
-
-def numpy_stepper(options: PathOptions) -> PathOptions:
-    return dataclasses.replace(options, backend="numpy")
-
-
-def run(law: str, name: str, backend: str):
-    """The Path of ``law`` on programme ``name`` with ``backend`` (followed once per module)."""
-    key = (law, name, backend)
+def run(law: str, name: str):
+    """The Path of ``law`` on the shared programme ``name`` (followed once per module)."""
+    key = (law, name)
     if key not in _CACHE:
-        system, programme, parameters, options = PROGRAMMES[name]
-        options = compiled(options) if backend == "compiled" else numpy_stepper(options)
-        _CACHE[key] = follow(system, law, programme, parameters, options)
+        programme, parameters = RUNS[name]
+        _CACHE[key] = follow(IGNORE, law, programme, parameters, PathOptions())
     return _CACHE[key]
 
 
@@ -175,160 +86,6 @@ def run(law: str, name: str, backend: str):
 def _clear_cache():
     yield
     _CACHE.clear()
-
-
-# --- comparison helpers ------------------------------------------------------------------------
-
-
-def _excess(expected: np.ndarray, value: np.ndarray, allowed: np.ndarray) -> tuple[float, int]:
-    """Largest |value - expected| / allowed over the finite entries, and its flat index."""
-    diff = np.abs(value - expected)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        ratio = np.where(np.isfinite(expected), diff / allowed, 0.0)
-    if ratio.size == 0:
-        return 0.0, -1
-    ratio = np.where(np.isnan(ratio), 0.0, ratio)
-    flat = int(np.argmax(ratio))
-    return float(ratio.ravel()[flat]), flat
-
-
-def _assert_same_places(where: str, a: np.ndarray, b: np.ndarray) -> None:
-    """Same shape; integers, booleans and strings equal; NaN and inf in the same places."""
-    assert a.shape == b.shape, f"{where}: shape {b.shape} != {a.shape}"
-    if a.dtype.kind in "biuUSO" or b.dtype.kind in "biuUSO":
-        np.testing.assert_array_equal(b, a, err_msg=where)
-        return
-    mismatch = np.flatnonzero((np.isnan(a) != np.isnan(b)).ravel() | (np.isinf(a) & (a != b)).ravel())
-    assert mismatch.size == 0, (
-        f"{where}: NaN/inf in different places, first at flat index {mismatch[0]} "
-        f"(shape {a.shape}): numpy {a.ravel()[mismatch[0]]!r}, compiled {b.ravel()[mismatch[0]]!r}"
-    )
-
-
-class _Worst:
-    """The worst comparison so far (for one message naming the key)."""
-
-    def __init__(self, where: str) -> None:
-        self.where, self.excess, self.text = where, 0.0, ""
-
-    def update(self, key: str, expected: np.ndarray, value: np.ndarray, allowed: np.ndarray) -> None:
-        excess, flat = _excess(expected, value, allowed)
-        if excess > self.excess:
-            e, v, tol = expected.ravel()[flat], value.ravel()[flat], np.broadcast_to(allowed, expected.shape).ravel()[flat]
-            index = np.unravel_index(flat, expected.shape)
-            self.excess = excess
-            self.text = (
-                f"{self.where}: worst key {key!r} at index {tuple(int(i) for i in index)}: expected {e!r}, "
-                f"compiled {v!r} (|diff| = {abs(e - v):.3e}, allowed {tol:.3e}: {excess:.3g} times)"
-            )
-
-    def check(self) -> None:
-        assert self.excess <= 1.0, self.text
-
-
-def assert_tables_close(reference: dict, value: dict, where: str, rtol: float = RTOL, atol: float = ATOL) -> None:
-    """Every array of ``value`` equals ``reference``: integers and booleans exactly,
-    floats within rtol/atol with NaN (and inf) in the same places.  On failure the
-    message names the worst key, its index and both values."""
-    assert set(value) == set(reference), f"{where}: keys {sorted(value)} != {sorted(reference)}"
-    worst = _Worst(where)
-    for key, ref in reference.items():
-        a, b = np.asarray(ref), np.asarray(value[key])
-        _assert_same_places(f"{where}[{key!r}]", a, b)
-        if a.dtype.kind == "f":
-            worst.update(key, a, b, atol + rtol * np.abs(a))
-    worst.check()
-
-
-def _local_rate(values: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """|d values / ds| at each stored state, the larger of the two neighbouring
-    secants (0 over zero-length intervals: a state stored twice at a stage entry)."""
-    ds = np.diff(s, axis=1).reshape(s.shape[:1] + (s.shape[1] - 1,) + (1,) * (values.ndim - 2))
-    dv = np.abs(np.diff(values, axis=1))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        secant = np.where(ds > 0, dv / ds, 0.0)
-    secant = np.where(np.isfinite(secant), secant, 0.0)
-    pad = np.zeros(secant.shape[:1] + (1,) + secant.shape[2:])
-    return np.maximum(np.concatenate([pad, secant], axis=1), np.concatenate([secant, pad], axis=1))
-
-
-def assert_steps_on_the_same_path(reference: dict, value: dict, rtol: float = RTOL, atol: float = ATOL) -> None:
-    """Stored states of two backends: the same points of the same path (see SHIFT_TOL).
-
-    The arclengths differ by at most SHIFT_TOL; u, F, lambda and W, moved by
-    the offset along the stored tangent (du, K du, dlambda, F . du / 2), equal
-    within rtol/atol; every other float within rtol/atol plus twice the offset
-    times the local rate along the path.
-    """
-    assert set(value) == set(reference), f"steps: keys {sorted(value)} != {sorted(reference)}"
-    for key, ref in reference.items():
-        _assert_same_places(f"steps[{key!r}]", np.asarray(ref), np.asarray(value[key]))
-    s = reference["s"]
-    shift = np.nan_to_num(value["s"] - s)
-    worst_shift = float(np.max(np.abs(shift))) if shift.size else 0.0
-    assert worst_shift <= SHIFT_TOL, (
-        f"steps['s']: the backends sample the path {worst_shift:.3e} apart in arclength "
-        f"(case, step {np.unravel_index(np.argmax(np.abs(shift)), shift.shape)})"
-    )
-    du, forces = reference["du"], reference["F"]
-    tangent = {
-        "u": du,
-        "F": np.einsum("...ij,...j->...i", reference["K"], du),
-        "lam": reference["dlam"],
-        "work": 0.5 * np.sum(forces * du, axis=-1),
-    }
-    worst = _Worst("steps")
-    for key, a in reference.items():
-        b = value[key]
-        if a.dtype.kind != "f" or key == "s":
-            continue
-        offset = shift.reshape(shift.shape + (1,) * (a.ndim - 2))
-        if key in tangent:
-            worst.update(key, a + offset * tangent[key], b, atol + rtol * np.abs(a))
-        else:
-            worst.update(key, a, b, atol + rtol * np.abs(a) + 2 * np.abs(offset) * _local_rate(a, s))
-    worst.check()
-
-
-def assert_results_close(reference, value) -> None:
-    """Two CaseResults: same statuses, messages, step counts and counters; the
-    stored states on the same path; events and cycle tables within rtol/atol."""
-    np.testing.assert_array_equal(value.status, reference.status, err_msg="status")
-    np.testing.assert_array_equal(value.message, reference.message, err_msg="message")
-    np.testing.assert_array_equal(value.n_steps, reference.n_steps, err_msg="n_steps")
-    assert set(value.counters) == set(reference.counters)
-    for name in reference.counters:
-        np.testing.assert_array_equal(value.counters[name], reference.counters[name], err_msg=f"counters[{name!r}]")
-    assert_steps_on_the_same_path(reference.steps, value.steps)
-    assert set(value.events) == set(reference.events)
-    for name in reference.events:
-        assert_tables_close(reference.events[name], value.events[name], f"events[{name!r}]")
-    assert_tables_close(reference.cycles, value.cycles, "cycles")
-
-
-def assert_results_identical(reference, value) -> None:
-    """Two CaseResults bitwise equal (NaN equal to NaN)."""
-    np.testing.assert_array_equal(value.status, reference.status, err_msg="status")
-    np.testing.assert_array_equal(value.message, reference.message, err_msg="message")
-    np.testing.assert_array_equal(value.n_steps, reference.n_steps, err_msg="n_steps")
-    for group in ("counters", "steps", "cycles"):
-        a, b = getattr(reference, group), getattr(value, group)
-        assert set(b) == set(a), group
-        for key in a:
-            np.testing.assert_array_equal(b[key], a[key], err_msg=f"{group}[{key!r}]")
-    assert set(value.events) == set(reference.events)
-    for name, table in reference.events.items():
-        assert set(value.events[name]) == set(table)
-        for key in table:
-            np.testing.assert_array_equal(value.events[name][key], table[key], err_msg=f"events[{name!r}][{key!r}]")
-
-
-def batch_and_programme(spec: SystemSpec, law: str, programme, parameters):
-    """The engine's CaseBatch and parsed programme, as ``follow`` builds them."""
-    definition = spec.definition
-    parsed = parse_programme(programme, definition.dofs, definition.forces, definition.load_parameter)
-    grid = ParameterGrid.from_mapping(parameters)
-    return case_batch(law, spec, grid.case_values(), grid.size), parsed
 
 
 def one_case(result, k: int) -> dict:
@@ -344,151 +101,11 @@ def one_case(result, k: int) -> dict:
     }
 
 
-# --- 1. the compiled stepper takes the numpy stepper's steps -----------------------------------
-
-
-def _check_reference(name: str, law: str, path) -> None:
-    """The numpy reference does what the programme is meant to exercise."""
-    result = path.results[0]
-    status = path.status.ravel()
-    found = {event: int(table["found"].sum()) for event, table in result.events.items()}
-    if name == "preload" and law != "turco":
-        assert found["limit_point"] >= 2 and found["hill_loss"] >= 2, found
-        if law != "mcnamara":
-            assert found["controllability_loss"] >= 1, found
-    if name == "preload_stop_limit" and law != "turco":
-        assert (status == "stopped:limit_point").sum() >= 2, status
-        assert (status == "finished").sum() >= 10, status
-    if name in ("contact_stop", "contact_ignore"):
-        assert found["secondary_contact"] == status.size, found
-        expected = "stopped:secondary_contact" if name == "contact_stop" else "finished"
-        assert np.all(status == expected), status
-    if name == "contact_activate":
-        assert found["secondary_contact"] == status.size, found
-        assert np.all(status == "finished"), status
-    if name == "preload_activate":
-        assert found["secondary_contact"] >= 4, found
-        assert (status == "finished").sum() >= status.size // 2, status  # alpha0 = 1 leaves the domain
-    if name == "max_steps":
-        assert 0 < (status == "failed:max_steps").sum() < status.size, status
-        assert (status == "finished").sum() > 0, status
-    if name == "leave_domain":
-        assert status.tolist() == ["finished", "failed:left_domain"] * 2, status
-    if name == "step_underflow":
-        assert (status == "finished").sum() >= 10, status
-        if law != "weakly_hypoelastic":
-            assert (status == "failed:step_size_underflow").sum() >= 1, status
-    if name == "small_max_step":
-        assert result.n_steps.min() >= 100, result.n_steps
-    if name.startswith("pieces_"):
-        # several stored states per accepted step (the pieces), never two further apart than 0.02
-        assert (result.n_steps > result.counters["accepted"] + 2).any(), (result.n_steps, result.counters["accepted"])
-        gaps = np.diff(result.steps["s"], axis=1)
-        assert np.nanmax(gaps) <= 0.02 * (1 + 1e-12), np.nanmax(gaps)
-    if name == "pieces_preload_stop_limit" and law != "turco":
-        assert (status == "stopped:limit_point").sum() >= 2, status
-    if name == "pieces_contact_activate":
-        assert found["secondary_contact"] == status.size, found
-        assert np.all(status == "finished"), status
-    if name == "pieces_max_steps":
-        # a step counts once, whatever its pieces: failed cases took exactly 3
-        failed = status == "failed:max_steps"
-        assert 0 < failed.sum() < status.size, status
-        assert np.all(result.counters["accepted"][failed] == 3), result.counters["accepted"]
-        assert (result.n_steps[failed] > 4).all(), result.n_steps
-
-
-@pytest.mark.parametrize("name", list(PROGRAMMES))
-@pytest.mark.parametrize("law", LAWS)
-def test_compiled_backend_takes_the_numpy_steps(law, name):
-    from ncstab.paths.compiled import unsupported_reason
-
-    system, programme, parameters, _ = PROGRAMMES[name]
-    batch, parsed = batch_and_programme(system, law, programme, parameters)
-    # Otherwise the comparison would be the numpy stepper against itself.
-    assert unsupported_reason(batch, parsed) is None
-    reference = run(law, name, "numpy")
-    _check_reference(name, law, reference)
-    path = run(law, name, "compiled")
-    assert path.options.backend == "compiled"
-    assert_results_close(reference.results[0], path.results[0])
-
-
-def test_the_dataset_records_which_engine_ran_each_law():
-    """``engine`` attribute: the compiled stepper with numba's version where it ran (the
-    pure-shear limit too, on the general models' loop), the numpy stepper where asked for."""
-    import numba
-
-    laws = ["cundall_strack", "mcnamara+no_tension"]
-    grid = {"gamma": [0.5, 2.0], "alpha0": ALPHA0}
-    path = follow(IGNORE, laws, UNIAXIAL, grid, compiled(PathOptions()))
-    parts = dict(part.split(": ", 1) for part in path.to_dataset().attrs["engine"].split("; "))
-    assert list(parts) == laws
-    for law in laws:
-        assert parts[law] == f"compiled stepper (numba {numba.__version__}), numpy stepper for what it leaves"
-    rigid = SystemSpec(normal="rigid", secondary_contacts="ignore")
-    pure_shear = [{"hold": {"F2": 0.0}, "drive": {"F1": 1.0}}]
-    on_rigid = follow(rigid, ["mcnamara", "cundall_strack"], pure_shear, {"alpha0": [0.7, ALPHA0]},
-                      compiled(PathOptions()))
-    parts = dict(part.split(": ", 1) for part in on_rigid.to_dataset().attrs["engine"].split("; "))
-    for law in ("mcnamara", "cundall_strack"):
-        assert parts[law] == (f"compiled stepper (numba {numba.__version__}) with the pure-shear limit's kernel, "
-                              "numpy stepper for what it leaves"), parts[law]
-    assert follow(IGNORE, laws[0], UNIAXIAL, grid, numpy_stepper(PathOptions())).to_dataset().attrs[
-        "engine"
-    ] == "cundall_strack: numpy stepper"
-
-
-#: Extension opens the normal contact of a no_tension law (delta < 0: no normal
-#: spring), compression closes it again: two located switches per case.
-TENSION = [{"hold": {"F2": 0.0}, "drive": {"D1": -0.1}}, {"hold": {"F2": 0.0}, "drive": {"D1": 0.1}}]
-TENSION_GRID = {"gamma": [0.5, 1.0, 2.0], "alpha0": [0.6, ALPHA0, 1.0]}
-
-
-@pytest.mark.parametrize("law", LAWS)
-def test_a_no_tension_law_opens_and_closes_its_contact_as_on_the_numpy_stepper(law):
-    """The compiled stepper follows the open branch where the normal contact's bit is set
-    and switches at the located zero of the overlap, as the numpy stepper does: same
-    statuses and steps, states within RTOL/ATOL (as for the smooth laws above); to the
-    bit for Cundall--Strack, whose kernels read no alpha."""
-    from ncstab.paths.compiled import unsupported_reason
-
-    law = f"{law}+no_tension"
-    batch, parsed = batch_and_programme(IGNORE, law, TENSION, TENSION_GRID)
-    assert unsupported_reason(batch, parsed) is None
-    reference = follow(IGNORE, law, TENSION, TENSION_GRID, numpy_stepper(PathOptions()))
-    path = follow(IGNORE, law, TENSION, TENSION_GRID, PathOptions())
-    assert path.results[0].engine.startswith("compiled stepper")
-    assert reference.succeeded.all(), reference.message
-    normal = reference.results[0].steps["N"].reshape(len(reference.status.ravel()), -1)
-    # Every case followed both branches: open (no normal force) and closed again (N > 0).
-    assert np.all(np.any(normal == 0, axis=1) & np.any(normal > 0, axis=1)), normal
-    assert_results_close(reference.results[0], path.results[0])
-    if law == "cundall_strack+no_tension":
-        assert_results_identical(reference.results[0], path.results[0])
-
-
-def test_unsupported_reason_is_none_for_a_smooth_linear_programme():
-    from ncstab.paths.compiled import unsupported_reason
-
-    for law in LAWS:
-        batch, parsed = batch_and_programme(IGNORE, law, PRELOAD_STOP, PRELOAD_GRID)
-        assert unsupported_reason(batch, parsed) is None, law
-
-
-def test_without_numba_the_compiled_backend_asks_for_the_extra(monkeypatch):
-    import ncstab.paths.compiled as compiled_module
-
-    monkeypatch.setattr(compiled_module, "NUMBA_AVAILABLE", False)
-    with pytest.raises(RuntimeError, match=r"needs numba, a dependency of ncstab: pip install numba"):
-        follow(IGNORE, "mcnamara", UNIAXIAL, {"gamma": 0.5, "alpha0": ALPHA0}, compiled(PathOptions()))
-
-
-# --- 3. the compiled stepper against the seed, directly ----------------------------------------
+# --- 1. the compiled stepper against the seed, directly ----------------------------------------
 
 
 def test_compiled_mcnamara_limit_point_is_the_maximum_of_eq53():
-    path = run("mcnamara", "preload_stop_limit", "compiled")
+    path = run("mcnamara", "preload_stop_limit")
     result, k = path.case("mcnamara", gamma=0.5, F2_lateral=0.75)
     assert result.status[k] == "stopped:limit_point"
     limit = {key: values[k] for key, values in result.events["limit_point"].items()}
@@ -537,7 +154,7 @@ def cundall_strack_rhs(gamma: float, alpha0: float):
 
 
 def test_compiled_cundall_strack_matches_solve_ivp_of_eq38():
-    path = run("cundall_strack", "uniaxial", "compiled")
+    path = run("cundall_strack", "uniaxial")
     result = path.results[0]
     values = path.grid.case_values()
     assert np.all(result.status == "finished")
@@ -554,11 +171,292 @@ def test_compiled_cundall_strack_matches_solve_ivp_of_eq38():
         expected = reference.sol(u[:, 0])
         # Cundall--Strack is not projected (T is an internal variable): the
         # engine's local rtol 1e-10 over <= 50 steps gives global errors
-        # well below 1e-8 (observed ~1e-11 on the numpy stepper).
+        # well below 1e-8 (measured 2e-11).
         np.testing.assert_allclose(u[:, 1], expected[0], rtol=0, atol=1e-8, err_msg=f"case {k}")
         np.testing.assert_allclose(forces[:, 0], expected[1], rtol=0, atol=1e-8, err_msg=f"case {k}")
         np.testing.assert_allclose(forces[:, 1], 0.0, rtol=0, atol=1e-8, err_msg=f"case {k}")
         assert abs(u[-1, 0] - 0.2) < 1e-9
+
+
+#: Turco, gamma = 2, F2* = 0 held, D1* driven to 0.6 (the golden reduced stability diagram,
+#: tests/test_golden.py).  With F2* = 0 every equilibrium satisfies seed Eq. (56), a
+#: quadratic in F1* whose two roots (Eq. 57) coincide where its discriminant
+#: sin^2(2 alpha - alpha0) + gamma sin(2 alpha) sin(2 alpha0 - 2 alpha) vanishes: for
+#: alpha0 = pi/4 and gamma = 2 at alpha = 3 pi/8 (1 + 2 (sqrt 2/2)(-sqrt 2/2) = 0), where
+#: F1* = 2 sin(pi/2) / sin(3 pi/4) = 2 sqrt 2 and Delta_1* = 0.5607.  There the branch of
+#: Eq. (58) through the unloaded state meets the other root, K21 and K22 vanish together
+#: and the path's cofactor tangent passes through zero and changes sign.
+SINGULAR = [{"hold": {"F1": 0.0}, "drive": {"F2": 0.0}}, {"hold": {"F2": "current"}, "drive": {"D1": 0.6}}]
+SINGULAR_ALPHA = 3 * math.pi / 8
+SINGULAR_F1 = 2 * math.sqrt(2)
+
+
+def turco_f2_zero_terms(alpha: np.ndarray, f1: np.ndarray, gamma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Seed Eq. (56) at F2* = 0: its residual, its discriminant and the root's sign.
+
+    The residual -sin(2 alpha) F1*^2 / 4 + F1* sin(2 alpha - alpha0) + gamma sin(2 alpha0 - 2 alpha)
+    (zero at every equilibrium), the discriminant of Eq. (57), and the sign before its square
+    root: F1* sin(2 alpha) / 2 - sin(2 alpha - alpha0) = +-sqrt(discriminant) (-1: Eq. 58).
+    """
+    b = np.sin(2 * alpha - ALPHA0)
+    residual = -0.25 * np.sin(2 * alpha) * f1**2 + f1 * b + gamma * np.sin(2 * ALPHA0 - 2 * alpha)
+    discriminant = b**2 + gamma * np.sin(2 * alpha) * np.sin(2 * ALPHA0 - 2 * alpha)
+    return residual, discriminant, np.sign(f1 * np.sin(2 * alpha) / 2 - b)
+
+
+def test_the_path_goes_straight_on_across_the_singular_point_of_turcos_chain():
+    """Each tangent continues the motion at the start of its step (tangent_field
+    ._continue_reference): across the singular point the path goes straight on, D1* never
+    decreasing, from the root of Eq. (58) onto the other root of Eq. (57), and ends at its
+    target.  Every stored state satisfies Eq. (56) to 1e-10 (F and u on equilibrium to
+    newton_tol 1e-12, the residual's derivatives of order 10; measured 2e-13), F2* = 0 to
+    1e-10, and F1* is Eq. (57)'s root to 1e-9 where the discriminant exceeds 1e-4 (near the
+    double root the closed form loses digits as 1/sqrt(discriminant)).  The singular point
+    is located (bifurcation and controllability loss) at alpha = 3 pi/8, F1* = 2 sqrt 2,
+    and Delta_1* from Eq. (55) and seed Eq. (1), each to 1e-9 (event_tol = 1e-10 in
+    arclength, along which they move at rates up to 1/l* ~ 3; measured 9e-11)."""
+    path = follow(IGNORE, "turco", SINGULAR, {"gamma": [2.0]}, PathOptions(max_step=0.05))
+    result = path.results[0]
+    assert result.engine.startswith("compiled stepper (numba ")
+    assert result.status[0] == "finished", result.message[0]
+    n = int(result.n_steps[0])
+    u, forces, alpha = result.steps["u"][0, :n], result.steps["F"][0, :n], result.steps["alpha"][0, :n]
+    assert np.all(np.diff(u[:, 0]) >= 0)  # straight on: no turn back at the point
+    assert abs(u[-1, 0] - 0.6) < 1e-9
+    residual, discriminant, root = turco_f2_zero_terms(alpha, forces[:, 0], 2.0)
+    assert np.abs(residual).max() <= 1e-10, np.abs(residual).max()
+    assert np.abs(forces[:, 1]).max() <= 1e-10
+    clear = discriminant > 1e-4
+    before, after = clear & (alpha < SINGULAR_ALPHA), clear & (alpha > SINGULAR_ALPHA)
+    assert before.sum() >= 10 and after.sum() >= 10  # states on both sides of the point
+    assert np.all(root[before] == -1) and np.all(root[after] == 1)
+    for mask, branch in ((before, -1), (after, 1)):
+        expected = turco_load_rotation(alpha[mask], 2.0, ALPHA0, branch=branch)
+        np.testing.assert_allclose(forces[mask, 0], expected, rtol=0, atol=1e-9, err_msg=f"branch {branch}")
+    length = math.cos(SINGULAR_ALPHA - ALPHA0) - SINGULAR_F1 * math.cos(SINGULAR_ALPHA) / 2  # Eq. (55)
+    for name in ("bifurcation", "controllability_loss"):
+        event = {key: values[0] for key, values in result.events[name].items()}
+        assert event["found"] and event["stage"] == 1, name
+        assert abs(event["alpha"] - SINGULAR_ALPHA) <= 1e-9, (name, event["alpha"] - SINGULAR_ALPHA)
+        assert abs(event["F"][0] - SINGULAR_F1) <= 1e-9, (name, event["F"][0] - SINGULAR_F1)
+        assert abs(event["u"][0] - (math.cos(ALPHA0) - length * math.cos(SINGULAR_ALPHA))) <= 1e-9, name
+
+
+# --- 2. located switches --------------------------------------------------------------------------
+
+#: Top and bottom grains touch where 2 l cos(alpha) = 1, left and right where
+#: 2 l sin(alpha) = 1; with seed Eq. (1), l cos(alpha) = cos(alpha0) - Delta_1 and
+#: l sin(alpha) = sin(alpha0) - Delta_2.  F2 = 0 held: the top-bottom pair closes at
+#: Delta_1 = cos(alpha0) - 1/2 (from 0.325 at alpha0 = 0.6 to 0.04 at alpha0 = 1.0), or,
+#: for gamma = 2 and small alpha0 (Delta_2 grows), the left-right pair first.
+CONTACT = [{"hold": {"F2": 0.0}, "drive": {"D1": 0.4}}]
+CONTACT_GRID = {"gamma": [0.5, 2.0], "alpha0": list(np.linspace(0.6, 1.0, 8))}
+#: Gap at a located contact: the crossing is located to event_tol = 1e-10 in arclength,
+#: along which the gaps move at |d gap/ds| <= 2 (|du/ds| <= 1).
+GAP_TOL = 1e-9
+#: Steps as long as the tolerances allow, cut into pieces of at most 0.02 on the
+#: interpolant (PathOptions.sample_step): stored states and sign checks at the pieces'
+#: ends, crossings located and steps cut inside a piece.
+PIECES = PathOptions(max_step=0.5, sample_step=0.02)
+
+
+def secondary_gaps(u: np.ndarray, alpha0) -> np.ndarray:
+    """(top-bottom, left-right) gaps 2 (cos(alpha0) - Delta_1) - 1 and 2 (sin(alpha0) - Delta_2) - 1
+    (seed Eq. 1), along the last axis."""
+    alpha0 = np.asarray(alpha0)[..., None]
+    return 2 * np.stack([np.cos(alpha0[..., 0]) - u[..., 0], np.sin(alpha0[..., 0]) - u[..., 1]], axis=-1) - 1
+
+
+@pytest.mark.parametrize("law", LAWS)
+@pytest.mark.parametrize("setting", ["stop", "activate", "activate_in_pieces"])
+def test_a_secondary_contact_is_located_where_its_gap_closes(law, setting):
+    """Every case meets a secondary contact: located where one of the two gaps, computed from
+    Delta by seed Eq. (1), is zero to GAP_TOL, the other still open, and no stored state
+    before it with a closed gap (the first contact is the one found).  ``stop`` ends the case
+    there, on the event state; ``activate`` (kappa 1 and 3) switches the spring on and goes on
+    to the target, Delta_1* = 0.4 to 1e-9 (the stage end located to event_tol); in pieces, the
+    stored states are never further apart than sample_step."""
+    spec = STOP if setting == "stop" else ACTIVATE
+    grid = CONTACT_GRID if setting == "stop" else {**CONTACT_GRID, "kappa": [1.0, 3.0]}
+    path = follow(spec, law, CONTACT, grid, PIECES if setting == "activate_in_pieces" else PathOptions())
+    result = path.results[0]
+    alpha0 = path.grid.case_values()["alpha0"]
+    contact = result.events["secondary_contact"]
+    assert contact["found"].all()
+    gaps = secondary_gaps(contact["u"], alpha0)
+    closing = np.abs(gaps).min(axis=1)
+    assert closing.max() <= GAP_TOL, closing.max()
+    assert np.abs(gaps).max(axis=1).min() > 0.01  # the other pair is still apart (measured >= 0.033)
+    for k in range(result.status.size):
+        n = int(result.n_steps[k])
+        s, u = result.steps["s"][k, :n], result.steps["u"][k, :n]
+        before = s < contact["s"][k]
+        assert np.all(secondary_gaps(u[before], alpha0[k]) > -GAP_TOL), k
+        if setting == "stop":
+            assert result.status[k] == "stopped:secondary_contact"
+            assert s[-1] == contact["s"][k]
+            np.testing.assert_array_equal(u[-1], contact["u"][k])
+        else:
+            assert result.status[k] == "finished"
+            assert abs(u[-1, 0] - 0.4) < 1e-9
+    if setting == "activate_in_pieces":
+        # several stored states per accepted step (the pieces), never two further apart than 0.02
+        assert (result.n_steps > result.counters["accepted"] + 2).any()
+        assert np.nanmax(np.diff(result.steps["s"], axis=1)) <= 0.02 * (1 + 1e-12)
+
+
+#: Compression (Delta_1* to 0.05), extension (to -0.1), compression again (to 0.1), F2* = 0
+#: held: a no_tension law's normal contact, closed through the first stage, opens inside
+#: the second and closes again inside the third: two located switches per case.
+TENSION = [
+    {"hold": {"F2": 0.0}, "drive": {"D1": 0.05}},
+    {"hold": {"F2": 0.0}, "drive": {"D1": -0.1}},
+    {"hold": {"F2": 0.0}, "drive": {"D1": 0.1}},
+]
+TENSION_GRID = {"gamma": [0.5, 1.0, 2.0], "alpha0": [0.6, ALPHA0, 1.0]}
+#: Overlap at a located switch: the crossing is located to event_tol = 1e-10 in
+#: arclength, along which the overlap moves at |d delta/ds| <= 2.
+SWITCH_TOL = 1e-9
+
+
+def normal_overlap(law: str, length: np.ndarray, alpha: np.ndarray, alpha0: float) -> np.ndarray:
+    """The normal overlap delta: 1 - l* (seed Eq. 15, 18, 26), cos(alpha - alpha0) - l* for Turco (Eq. 28)."""
+    return np.cos(alpha - alpha0) - length if law == "turco" else 1 - length
+
+
+@pytest.mark.parametrize("law", LAWS)
+def test_a_no_tension_contact_opens_and_closes_where_its_overlap_is_zero(law):
+    """The no_tension kink (seed Eq. 59) as located switches: at every stored state
+    N = <delta>, the overlap of the law (seed Eq. 15, 28) from the stored l* and alpha, to
+    1e-12 (both from the same numbers: rounding), so never tension and nothing on the open
+    branch; the overlap never changes sign within a step: each switch is a stored state
+    with delta = 0 to SWITCH_TOL (so N = 0 there), one inside the second stage where the
+    contact opens and one inside the third where it closes again."""
+    path = follow(IGNORE, f"{law}+no_tension", TENSION, TENSION_GRID)
+    result = path.results[0]
+    assert result.engine.startswith("compiled stepper (numba ")
+    assert np.all(result.status == "finished"), result.message
+    alpha0 = path.grid.case_values()["alpha0"]
+    worst = 0.0
+    for k in range(result.status.size):
+        n = int(result.n_steps[k])
+        stage = result.steps["stage"][k, :n]
+        overlap = normal_overlap(law, result.steps["l"][k, :n], result.steps["alpha"][k, :n], alpha0[k])
+        np.testing.assert_allclose(result.steps["N"][k, :n], np.maximum(overlap, 0.0), rtol=0, atol=1e-12)
+        side = np.where(np.abs(overlap) <= SWITCH_TOL, 0.0, np.sign(overlap))
+        assert not np.any(side[1:] * side[:-1] < 0), k  # from one side to the other only through a switch
+        for switching, opening in ((1, True), (2, False)):
+            inside = np.flatnonzero((stage == switching) & (side == 0))
+            assert inside.size >= 1, (k, switching)
+            first = inside[0]
+            assert side[first - 1] == (1 if opening else -1) and side[inside[-1] + 1] == (-1 if opening else 1)
+            worst = max(worst, float(np.abs(overlap[inside]).max()))
+    assert worst <= SWITCH_TOL
+
+
+#: Green's paradox: a linear stage, then two clockwise turns of a circle in the
+#: (Delta_1*, Delta_2*) plane off the current state (each turn's end located as a
+#: crossing), then one counterclockwise turn of another; for alpha0 = 0.6 the second
+#: circle reaches the left-right contact (switched on where it is activated).
+CYCLES = [
+    {"hold": {"F2": 0.0}, "drive": {"D1": 0.05}},
+    {"cycle": {"center": [0.03, 0.0], "turns": 2, "direction": -1}},
+    {"cycle": {"center": [0.05, 0.04], "turns": 1, "direction": 1}},
+]
+#: (stage, turn) of each column of the cycle tables.
+CYCLE_TURNS = ((1, 1), (1, 2), (2, 1))
+
+
+@pytest.mark.parametrize("law", LAWS)
+@pytest.mark.parametrize("spec", [IGNORE, ACTIVATE], ids=["ignore", "activate"])
+def test_cycle_stages_close_their_turns_and_show_greens_paradox(law, spec):
+    """Each turn ends where it started: Delta at lambda = 2 pi k equals Delta at the stage's
+    start to 1e-9 (the turn's end located to event_tol = 1e-10 in arclength, |du/ds| <= 1).
+    Green's paradox (seed Introduction, Eq. 17-29): the hyperelastic laws (and the
+    frictionless secondary springs) do no work over a turn, |W| <= 1e-11 (the work is
+    integrated with the path at rtol 1e-10 over a turn whose terms are of order 1e-3;
+    measured 1e-14), and their forces come back, like the weakly hypoelastic law's (a total
+    form), to 1e-9 (Delta back to 1e-9 times stiffnesses of order 1); the weakly hypoelastic
+    and Cundall--Strack laws do work over a closed turn (|W| > 1e-6, measured >= 2e-5), and
+    Cundall--Strack's forces do not come back (by more than 1e-4, measured >= 1.6e-3).
+    For alpha0 = 0.6 the left-right contact is located on the second circle, its gap zero
+    to GAP_TOL."""
+    parameters = {"gamma": [0.5, 2.0], "alpha0": [0.6, ALPHA0]}
+    path = follow(spec, law, CYCLES, parameters, PathOptions(max_step=0.2))
+    result = path.results[0]
+    assert result.engine.startswith("compiled stepper (numba ")
+    assert np.all(result.status == "finished"), result.message
+    work = result.cycles["work"]
+    assert work.shape == (4, 3) and np.isfinite(work).all()  # every turn closed and tabled
+    np.testing.assert_array_equal(result.cycles["stage"], [stage for stage, _ in CYCLE_TURNS])
+    for k in range(result.status.size):
+        n = int(result.n_steps[k])
+        stage, lam = result.steps["stage"][k, :n], result.steps["lam"][k, :n]
+        u, forces = result.steps["u"][k, :n], result.steps["F"][k, :n]
+        for column, (cycle_stage, turn) in enumerate(CYCLE_TURNS):
+            start = np.flatnonzero(stage == cycle_stage)[0]
+            end = np.flatnonzero((stage == cycle_stage) & (np.abs(lam - 2 * np.pi * turn) <= 1e-8))
+            assert end.size >= 1, (k, cycle_stage, turn)
+            np.testing.assert_allclose(u[end[0]], u[start], rtol=0, atol=1e-9, err_msg=f"case {k}, turn {column}")
+            force_gap = np.abs(forces[end[0]] - forces[start]).max()
+            if law == "cundall_strack":
+                assert force_gap > 1e-4, (k, column, force_gap)
+                assert abs(work[k, column]) > 1e-6, (k, column)
+            else:
+                assert force_gap <= 1e-9, (k, column, force_gap)
+                if law == "weakly_hypoelastic":
+                    assert abs(work[k, column]) > 1e-6, (k, column)
+                else:
+                    assert abs(work[k, column]) <= 1e-11, (k, column, work[k, column])
+    contact = result.events["secondary_contact"]
+    alpha0 = path.grid.case_values()["alpha0"]
+    np.testing.assert_array_equal(contact["found"], alpha0 == 0.6)
+    assert np.all(contact["stage"][contact["found"]] == 2)
+    lateral = secondary_gaps(contact["u"][contact["found"]], alpha0[contact["found"]])[:, 1]
+    assert np.abs(lateral).max() <= GAP_TOL
+
+
+# --- 3. step options --------------------------------------------------------------------------------
+
+
+def test_max_steps_counts_steps_not_their_pieces():
+    """At most 3 steps as long as the tolerances allow (max_step 0.5), each stored in pieces
+    of at most sample_step = 0.02: the cases that need more fail with max_steps after
+    exactly 3 accepted steps, having stored more than the start and 3 states; the others
+    finish at Delta_1* = 0.2 (to 1e-9: the stage end located to event_tol)."""
+    options = PathOptions(max_step=0.5, sample_step=0.02, max_steps=3)
+    path = follow(IGNORE, "mcnamara", UNIAXIAL, UNIAXIAL_GRID, options)
+    result = path.results[0]
+    failed = result.status == "failed:max_steps"
+    assert 0 < failed.sum() < failed.size, result.status
+    assert np.all(result.status[~failed] == "finished")
+    assert np.all(result.counters["accepted"][failed] == 3), result.counters["accepted"]
+    assert (result.n_steps[failed] > 4).all(), result.n_steps
+    assert all("max_steps = 3" in message for message in result.message[failed])
+    assert np.nanmax(np.diff(result.steps["s"], axis=1)) <= 0.02 * (1 + 1e-12)
+    ends = result.steps["u"][np.arange(failed.size), result.n_steps - 1, 0]
+    np.testing.assert_allclose(ends[~failed], 0.2, rtol=0, atol=1e-9)
+
+
+def test_a_step_that_would_fall_below_min_step_fails_its_case_alone():
+    """Steps of 0.1 that cannot shrink below 0.03: where a step is rejected and its
+    shortened retry would fall below min_step, the case fails with step_size_underflow
+    (its message says so), its stored states finite and short of the target; its
+    neighbours in the batch finish at Delta_1* = 0.6 (to 1e-9: the stage end located to
+    event_tol)."""
+    grid = {"gamma": [0.1, 0.5, 1.0, 1.9], "alpha0": ALPHA0, "F2_lateral": [0.0, 0.4, 0.75]}
+    path = follow(IGNORE, "mcnamara", PRELOAD, grid, PathOptions(initial_step=0.1, max_step=0.1, min_step=0.03))
+    result = path.results[0]
+    failed = result.status == "failed:step_size_underflow"
+    assert 0 < failed.sum() < failed.size, result.status
+    assert np.all(result.status[~failed] == "finished")
+    last = result.n_steps - 1
+    ends = result.steps["u"][np.arange(failed.size), last, 0]
+    np.testing.assert_allclose(ends[~failed], 0.6, rtol=0, atol=1e-9)
+    for k in np.flatnonzero(failed):
+        assert "fell below min_step" in result.message[k], result.message[k]
+        assert np.isfinite(result.steps["u"][k, : last[k] + 1]).all()
+        assert ends[k] < 0.6 - 1e-3
 
 
 # --- 4. a case's result does not depend on its batch --------------------------------------------
@@ -567,19 +465,47 @@ def test_compiled_cundall_strack_matches_solve_ivp_of_eq38():
 @pytest.mark.parametrize("law", ["mcnamara", "cundall_strack"])
 @pytest.mark.parametrize(("gamma", "f2"), [(0.5, 0.75), (1.9, 0.0), (0.1, 0.8)])
 def test_compiled_case_alone_equals_the_case_in_a_batch_of_64(law, gamma, f2):
-    batch_path = run(law, "preload", "compiled")
+    batch_path = run(law, "preload")
     assert batch_path.results[0].status.size == 64
     result, k = batch_path.case(law, gamma=gamma, F2_lateral=f2)
-    alone = follow(
-        IGNORE, law, PRELOAD, {"gamma": gamma, "alpha0": ALPHA0, "F2_lateral": f2}, compiled(PathOptions())
-    )
+    alone = follow(IGNORE, law, PRELOAD, {"gamma": gamma, "alpha0": ALPHA0, "F2_lateral": f2}, PathOptions())
     expected, got = one_case(result, k), one_case(alone.results[0], 0)
     assert set(got) == set(expected)
     for key in expected:
         np.testing.assert_array_equal(got[key], expected[key], err_msg=key)
 
 
-# --- 5. options ---------------------------------------------------------------------------------
+# --- 5. options, the engine named, the cache --------------------------------------------------
+
+
+def test_the_dataset_records_which_engine_ran_each_law():
+    """``engine`` attribute: the compiled stepper with numba's version, for each law (the
+    pure-shear limit too, on the general models' loop)."""
+    import numba
+
+    laws = ["cundall_strack", "mcnamara+no_tension"]
+    grid = {"gamma": [0.5, 2.0], "alpha0": ALPHA0}
+    path = follow(IGNORE, laws, UNIAXIAL, grid)
+    parts = dict(part.split(": ", 1) for part in path.to_dataset().attrs["engine"].split("; "))
+    assert list(parts) == laws
+    for law in laws:
+        assert parts[law].startswith("compiled stepper (numba "), parts[law]
+        assert f"numba {numba.__version__}" in parts[law], parts[law]
+    rigid = SystemSpec(normal="rigid", secondary_contacts="ignore")
+    pure_shear = [{"hold": {"F2": 0.0}, "drive": {"F1": 1.0}}]
+    on_rigid = follow(rigid, ["mcnamara", "cundall_strack"], pure_shear, {"alpha0": [0.7, ALPHA0]})
+    parts = dict(part.split(": ", 1) for part in on_rigid.to_dataset().attrs["engine"].split("; "))
+    assert list(parts) == ["mcnamara", "cundall_strack"]
+    for law in ("mcnamara", "cundall_strack"):
+        assert parts[law].startswith("compiled stepper (numba "), parts[law]
+
+
+def test_without_numba_the_compiled_backend_asks_for_the_extra(monkeypatch):
+    import ncstab.paths.compiled as compiled_module
+
+    monkeypatch.setattr(compiled_module, "NUMBA_AVAILABLE", False)
+    with pytest.raises(RuntimeError, match=r"needs numba, a dependency of ncstab: pip install numba"):
+        follow(IGNORE, "mcnamara", UNIAXIAL, {"gamma": 0.5, "alpha0": ALPHA0}, PathOptions(backend="compiled"))
 
 
 def test_backend_option_is_validated():
@@ -609,7 +535,6 @@ def test_a_study_file_may_choose_the_compiled_backend():
 
     study = parse_study(STUDY + '[options]\nbackend = "compiled"\n', "study.toml")
     assert study.options.backend == "compiled"
-    assert parse_study(STUDY + '[options]\nbackend = "numpy"\n').options.backend == "numpy"
     assert parse_study(STUDY).options.backend == "auto"
     assert parse_study(STUDY + '[options]\nbackend = "auto"\n').options.backend == "auto"
 
@@ -629,7 +554,7 @@ def test_the_compiled_loop_is_generated_once_and_cached_on_disk():
     from ncstab.cache import cache_directory
 
     follow(SystemSpec(secondary_contacts="ignore"), "cundall_strack", [{"hold": {"F2": 0.0}, "drive": {"D1": 0.01}}],
-           {"gamma": 1.0}, PathOptions(backend="compiled"))
+           {"gamma": 1.0}, PathOptions())
     directory = cache_directory("compiled")
     modules = sorted(directory.glob("ncstab_stage_loop_*.py"))
     assert modules, directory
@@ -685,60 +610,3 @@ def test_a_long_stage_grows_the_recorder_once_not_at_every_doubling(monkeypatch)
     alone = follow(IGNORE, "cundall_strack", programme, {"gamma": 1.0}, options).to_dataset()
     in_sweep = path.to_dataset()["u"].sel(gamma=1.0).values[0, : alone.sizes["step"]]
     np.testing.assert_array_equal(alone["u"].values[0], in_sweep)
-
-
-#: Turco, gamma = 2, F2* = 0 (the golden reduced stability diagram, tests/test_golden.py):
-#: at D1* = 0.5607 the path meets a singular point of its mixed control, where the
-#: cofactor tangent passes through zero and changes sign while the path goes on.
-SINGULAR = [{"hold": {"F1": 0.0}, "drive": {"F2": 0.0}}, {"hold": {"F2": "current"}, "drive": {"D1": 0.6}}]
-
-
-def test_the_tangent_is_oriented_by_continuity_across_a_singular_point_as_on_the_numpy_stepper():
-    """Each tangent continues the motion at the start of its step (tangent_field
-    ._continue_reference): across the singular point both steppers go straight on and
-    give the same case to the bit.  Without the continuity the compiled stepper crept
-    through it in smaller steps (the golden archive's 108 steps)."""
-    spec = SystemSpec(secondary_contacts="ignore")
-    parameters = {"gamma": [2.0]}
-    options = PathOptions(max_step=0.05)
-    reference = follow(spec, "turco", SINGULAR, parameters, numpy_stepper(options))
-    path = follow(spec, "turco", SINGULAR, parameters, compiled(options))
-    assert path.results[0].engine.startswith("compiled stepper")
-    assert reference.succeeded.all(), reference.message
-    d1 = reference.results[0].steps["u"][0, : int(reference.results[0].n_steps[0]), 0]
-    assert d1.max() == pytest.approx(0.6, abs=1e-12) and np.any(np.abs(d1 - 0.5607) < 0.05)  # it got across
-    assert_results_identical(reference.results[0], path.results[0])
-
-
-#: Green's paradox on the compiled stepper: a linear stage, then two clockwise turns
-#: of a circle off the current state (the turn's end and the stage's target located
-#: as crossings), then one counterclockwise turn, secondary contacts switching
-#: where the circle meets them.
-CYCLES = [
-    {"hold": {"F2": 0.0}, "drive": {"D1": 0.05}},
-    {"cycle": {"center": [0.03, 0.0], "turns": 2, "direction": -1}},
-    {"cycle": {"center": [0.05, 0.04], "turns": 1, "direction": 1}},
-]
-
-
-@pytest.mark.parametrize("law", LAWS)
-@pytest.mark.parametrize("spec", [IGNORE, ACTIVATE], ids=["ignore", "activate"])
-def test_cycle_stages_run_compiled_as_on_the_numpy_stepper(law, spec):
-    """Cycle stages on the compiled stepper: the control path on the circle (projection,
-    tangent, event location), each turn closed where its crossing cuts the step and
-    its work, force gap and drift of T tabled -- the numpy stepper's result to the bit."""
-    from ncstab.paths.compiled import unsupported_reason
-
-    parameters = {"gamma": [0.5, 2.0], "alpha0": [0.6, ALPHA0]}
-    batch, parsed = batch_and_programme(spec, law, CYCLES, parameters)
-    assert unsupported_reason(batch, parsed) is None
-    options = PathOptions(max_step=0.2)
-    reference = follow(spec, law, CYCLES, parameters, numpy_stepper(options))
-    path = follow(spec, law, CYCLES, parameters, options)
-    assert path.results[0].engine.startswith("compiled stepper")
-    assert reference.succeeded.all(), reference.message
-    work = reference.results[0].cycles["work"]
-    assert work.shape == (4, 3) and np.isfinite(work).all()  # every turn closed and tabled
-    if spec is ACTIVATE:  # the second circle reaches the left-right contact for alpha0 = 0.6
-        assert reference.results[0].events["secondary_contact"]["found"].any()
-    assert_results_identical(reference.results[0], path.results[0])

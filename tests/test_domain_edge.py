@@ -34,49 +34,35 @@ drive = {{ F2 = "F2_lateral" }}
 hold = {{ F2 = "current" }}
 drive = {{ D1 = 0.6 }}
 [options]
-backend = "{backend}"
 max_step = {max_step}
 """
 #: Where the tight reference (max_step 0.005, rtol 1e-12) locates both events.
 EVENT_S = 5.65863959
 
 
-def _run(backend: str, max_step: float):
-    return run_study(parse_study(STUDY.format(backend=backend, max_step=max_step)))
+def _run(max_step: float):
+    return run_study(parse_study(STUDY.format(max_step=max_step)))
 
 
 @pytest.mark.parametrize("max_step", [0.01, 0.02, 0.05])
-@pytest.mark.parametrize("backend", ["numpy", "compiled"])
-def test_events_in_the_step_that_leaves_the_domain_are_located(backend, max_step):
+def test_events_in_the_step_that_leaves_the_domain_are_located(max_step):
     """The limit point and the loss of Hill's condition are found (they were not, before),
     where the reference finds them: 1e-8 in s (event_tol 1e-10, and the integration error of
     a path 5.66 long at rtol 1e-6 and steps up to 0.05)."""
-    dataset = _run(backend, max_step)
+    dataset = _run(max_step)
     assert dataset["status"].values.ravel().tolist() == ["failed:left_domain"]
     for event in ("limit_point", "hill_loss"):
         s = float(dataset[f"{event}_s"].values.ravel()[0])
         assert abs(s - EVENT_S) < 1e-8, (event, s)
 
 
-@pytest.mark.parametrize("backend", ["numpy", "compiled"])
-def test_the_path_is_stored_up_to_the_edge_of_the_domain_and_no_further(backend):
+def test_the_path_is_stored_up_to_the_edge_of_the_domain_and_no_further():
     """Every stored state is admissible (|alpha| < pi/2, l* > 0); the last lies within
     2 event_tol of the edge in arclength, so within 1e-8 of alpha = pi/2 (d alpha / ds is of
     order 1 there)."""
-    dataset = _run(backend, 0.02)
+    dataset = _run(0.02)
     n = int(dataset["n_steps"].values.ravel()[0])
     alpha = dataset["alpha"].values.ravel()[:n]
     assert (np.abs(alpha) < np.pi / 2).all() and (dataset["l"].values.ravel()[:n] > 0).all()
     assert np.pi / 2 - alpha[-1] < 1e-8, np.pi / 2 - alpha[-1]
 
-
-def test_both_steppers_take_the_same_path_to_the_edge():
-    """The same bisection on the same interpolant: the same states, events and status (the
-    stored numbers to 1e-12: the steppers differ at most by the rounding of transcendental
-    functions)."""
-    numpy_run, compiled_run = _run("numpy", 0.02), _run("compiled", 0.02)
-    assert numpy_run["n_steps"].values.tolist() == compiled_run["n_steps"].values.tolist()
-    assert numpy_run["message"].values.tolist() == compiled_run["message"].values.tolist()
-    for name in ("s", "u", "F", "alpha", "limit_point_s", "hill_loss_s"):
-        np.testing.assert_allclose(compiled_run[name].values, numpy_run[name].values, rtol=1e-12, atol=1e-12,
-                                   equal_nan=True, err_msg=name)

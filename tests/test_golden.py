@@ -58,17 +58,17 @@ KNOWN_DIFFERENCES = {
 END_STATES = {
     ("stability_diagram_reduced", "turco"): lambda: turco_bifurcation.equilibrium(0.6, 0.40),
 }
-#: Every law of every study runs on the compiled stepper.  The reduced diamond's loop
+#: Every law of every study runs on the compiled stepper, the only engine.  The
+#: goldens were made by the numpy stepper, since retired.  The reduced diamond's loop
 #: (linear and cycle stages of the deformable reduced diamond, secondary contacts
-#: ignored or activated, no_tension laws too) gives the goldens bit for bit: it orients
-#: the tangent by continuity as the numpy stepper does, so on the known difference
-#: above it takes the numpy stepper's steps (104, against the golden's 108)
-#: (tests/test_compiled_stepper.py).  The pure-shear limit runs on the general models'
-#: loop (ncstab.paths.compiled_rigid), whose sums are in another order: its studies
-#: are compared to ROUNDING_TOL.
+#: ignored or activated, no_tension laws too) reproduces them bit for bit; on the
+#: known difference above it orients the tangent by continuity and steps over the
+#: point (91 stored states, against the golden's 108).  The pure-shear limit runs on
+#: the general models' loop (ncstab.paths.compiled_rigid), whose sums are in another
+#: order than the numpy stepper's: its studies are compared to ROUNDING_TOL.
 ON_THE_GENERAL_LOOP = {"fig14_15_pure_shear_blocking"}
-#: The pure-shear limit on the general loop against its golden (made by the numpy
-#: stepper): the same steps, events and statuses, the numbers to 1e-12 (the issue's
+#: The pure-shear limit on the general loop against its golden (made by the retired
+#: numpy stepper): the same steps, events and statuses, the numbers to 1e-12 (the issue's
 #: bound; measured 2e-15 on the ends and events of every law).
 ROUNDING_TOL = 1e-12
 #: The end states of a known difference agree to rounding (both paths are projected
@@ -90,9 +90,10 @@ def _documented_changes(golden: xr.Dataset, computed: xr.Dataset) -> xr.Dataset:
       settings (``reduction=symmetric``), and ``stage_drives`` what each
       loading stage drives (the figures' axes);
     * the attribute ``engine`` says which stepper ran each law (issue 14).
-      The goldens were made by the numpy stepper; the compiled stepper, the
-      default, gives them bit for bit on the reduced diamond's loop, and to
-      :data:`ROUNDING_TOL` on the general models' loop (:data:`ON_THE_GENERAL_LOOP`).
+      The goldens were made by the numpy stepper, since retired; the compiled
+      stepper, now the only engine, gives them bit for bit on the reduced
+      diamond's loop, and to :data:`ROUNDING_TOL` on the general models' loop
+      (:data:`ON_THE_GENERAL_LOOP`).
 
     and, in the variables (issue 16, dynamic stability):
 

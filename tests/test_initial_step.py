@@ -1,25 +1,26 @@
 """The first step of a path (``PathOptions.initial_step = "auto"``, the default).
 
-- :func:`ncstab.paths.integrator.initial_step_size` is Hairer's starting-step
-  algorithm: it equals scipy's own implementation (``select_initial_step``,
-  used by ``solve_ivp``) wherever scipy's probe step is the one given.
-- In the engine: both steppers start every case with the same estimate (bit
-  for bit), a number still fixes the first step, and the estimate saves steps
-  on the uniaxial Cundall--Strack sweep without changing where the paths end.
+- The compiled loop's starting-step estimate (``initial_step_size``, one case, in
+  the generated loop module: :mod:`ncstab.paths.loop_steps`) is Hairer's
+  starting-step algorithm: it equals scipy's own implementation
+  (``select_initial_step``, used by ``solve_ivp``) wherever scipy's probe step is
+  the one given, in the reduced diamond's loop and in the general models' loop.
+- In the engine: a number still fixes the first step, and the estimate saves
+  steps on the uniaxial Cundall--Strack sweep without changing where the paths end.
 - Study files take ``initial_step = "auto"`` or a number, and name the field
   otherwise.
 """
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 import pytest
 from scipy.integrate._ivp.common import select_initial_step
 
 import ncstab
 from ncstab.paths import PathOptions, SystemSpec
-from ncstab.paths.compiled import NUMBA_AVAILABLE
-from ncstab.paths.integrator import initial_step_size
+from ncstab.paths.compiled_source import general_loop_source, load_module, loop_source
 from ncstab.studies import StudyFileError
 from ncstab.studies.study import parse_study
 
@@ -33,6 +34,29 @@ UNIAXIAL = [{"hold": {"F2": 0.0}, "drive": {"D1": 0.2}}]
 SWEEP = {"gamma": list(np.linspace(0.1, 2.0, 6)), "alpha0": list(np.linspace(0.3, 1.2, 6))}
 
 
+@pytest.fixture(scope="module", params=["diamond", "general"])
+def estimate(request):
+    """(the loop's ``initial_step_size`` of one case, the state size it reads or None).
+
+    The loops' functions are compiled without a Python wrapper (they are called from
+    the loop only): a jitted function calls it here.  The reduced diamond's loop
+    reads its own state size (``M``, 4: v0, v1, lambda, W) whatever the arrays'
+    length; the general models' loop reads the arrays' length."""
+    if request.param == "diamond":
+        module = load_module(loop_source(False), "ncstab_stage_loop")
+        size = module.M
+    else:
+        module = load_module(general_loop_source(False), "ncstab_general_loop")
+        size = None
+    kernel = module.initial_step_size
+
+    @numba.njit
+    def one_case(y0, f0, f1, probe, rtol, atol):
+        return kernel(y0, f0, f1, probe, rtol, atol)
+
+    return one_case, size
+
+
 def _rhs(matrix: np.ndarray):
     """A smooth nonlinear right-hand side: f(y) = sin(A y) + 0.3 (1, ..., 1)."""
 
@@ -43,27 +67,29 @@ def _rhs(matrix: np.ndarray):
 
 
 @pytest.mark.parametrize("seed", range(8))
-def test_the_estimate_is_scipys_at_an_undeformed_start(seed):
+def test_the_estimate_is_scipys_at_an_undeformed_start(seed, estimate):
     # y0 = 0: scipy probes with h0 = 1e-6 (its guess 0.01 |y0| / |f0| is 0 there).
+    initial_step_size, size = estimate
     rng = np.random.default_rng(seed)
-    m = 5
+    m = size or 5
     f = _rhs(rng.normal(scale=rng.uniform(0.1, 50), size=(m, m)))
     y0 = np.zeros(m)
     f0 = f(0.0, y0)
     rtol, atol = 10.0 ** rng.uniform(-12, -4), 10.0 ** rng.uniform(-14, -6)
     expected = select_initial_step(f, 0.0, y0, np.inf, np.inf, f0, 1.0, ORDER, rtol, atol)
     probe = 1e-6
-    ours = initial_step_size(y0[None], f0[None], f(0.0, y0 + probe * f0)[None], probe, rtol, atol)
-    np.testing.assert_allclose(ours, [expected], rtol=ROOT_RTOL, atol=0)
+    ours = initial_step_size(y0, f0, f(0.0, y0 + probe * f0), probe, rtol, atol)
+    np.testing.assert_allclose(ours, expected, rtol=ROOT_RTOL, atol=0)
 
 
-def test_the_estimate_is_scipys_away_from_zero_batched():
-    # y0 != 0: scipy probes with 0.01 |y0| / |f0|; given that probe, every case of a
-    # batch gets scipy's estimate, including the cap at 100 probes.
+def test_the_estimate_is_scipys_away_from_zero_case_by_case(estimate):
+    # y0 != 0: scipy probes with 0.01 |y0| / |f0|; given that probe, every case gets
+    # scipy's estimate, including the cap at 100 probes.
+    initial_step_size, size = estimate
     rng = np.random.default_rng(42)
-    m, size = 4, 200
-    rows = []
-    for _ in range(size):
+    m, cases = size or 4, 200
+    capped = 0
+    for _ in range(cases):
         f = _rhs(rng.normal(scale=rng.uniform(0.01, 100), size=(m, m)))
         y0 = rng.normal(size=m) * 10.0 ** rng.uniform(-3, 1)
         f0 = f(0.0, y0)
@@ -71,29 +97,22 @@ def test_the_estimate_is_scipys_away_from_zero_batched():
         scale = atol + np.abs(y0) * rtol
         probe = 0.01 * np.linalg.norm(y0 / scale) / np.linalg.norm(f0 / scale)
         expected = select_initial_step(f, 0.0, y0, np.inf, np.inf, f0, 1.0, ORDER, rtol, atol)
-        rows.append((y0, f0, f(0.0, y0 + probe * f0), probe, expected))
-    y0, f0, f1, probe, expected = (np.array(column) for column in zip(*rows))
-    capped = 0
-    for k in range(size):  # the probe differs per case: one call each, on a one-case batch
-        ours = initial_step_size(y0[k : k + 1], f0[k : k + 1], f1[k : k + 1], probe[k], 1e-8, 1e-10)
-        np.testing.assert_allclose(ours, [expected[k]], rtol=ROOT_RTOL, atol=0)
-        capped += bool(np.isclose(expected[k], 100 * probe[k], rtol=1e-15))
-    assert 0 < capped < size  # both branches of the min were exercised
-    # and a batch with one probe equals its cases taken one by one
-    batch = initial_step_size(y0, f0, f1, 1e-3, 1e-8, 1e-10)
-    singles = [initial_step_size(y0[k : k + 1], f0[k : k + 1], f1[k : k + 1], 1e-3, 1e-8, 1e-10)[0] for k in range(size)]
-    np.testing.assert_array_equal(batch, singles)
+        ours = initial_step_size(y0, f0, f(0.0, y0 + probe * f0), probe, rtol, atol)
+        np.testing.assert_allclose(ours, expected, rtol=ROOT_RTOL, atol=0)
+        capped += bool(np.isclose(expected, 100 * probe, rtol=1e-15))
+    assert 0 < capped < cases  # both branches of the min were exercised
 
 
-def test_the_estimate_of_a_still_or_broken_start():
-    zero = np.zeros((1, 3))
+def test_the_estimate_of_a_still_or_broken_start(estimate):
+    initial_step_size, size = estimate
+    m = size or 3
+    zero = np.zeros(m)
     # f = 0 everywhere: scipy's fallback max(1e-6, 1e-3 probe), at most 100 probes
-    expected = select_initial_step(lambda t, y: np.zeros(3), 0.0, zero[0], np.inf, np.inf, zero[0], 1.0, ORDER, 1e-6, 1e-9)
-    assert initial_step_size(zero, zero, zero, 1e-6, 1e-6, 1e-9)[0] == expected == 1e-6
-    assert initial_step_size(zero, zero, zero, 1e-3, 1e-6, 1e-9)[0] == 1e-6
+    expected = select_initial_step(lambda t, y: np.zeros(m), 0.0, zero, np.inf, np.inf, zero, 1.0, ORDER, 1e-6, 1e-9)
+    assert initial_step_size(zero, zero, zero, 1e-6, 1e-6, 1e-9) == expected == 1e-6
+    assert initial_step_size(zero, zero, zero, 1e-3, 1e-6, 1e-9) == 1e-6
     # a right-hand side that is not finite at the probe: the probe itself
-    f0 = np.ones((1, 3))
-    assert initial_step_size(zero, f0, np.full((1, 3), np.nan), 1e-3, 1e-6, 1e-9)[0] == 1e-3
+    assert initial_step_size(zero, np.ones(m), np.full(m, np.nan), 1e-3, 1e-6, 1e-9) == 1e-3
 
 
 def _first_steps(path) -> np.ndarray:
@@ -135,15 +154,6 @@ def test_auto_saves_steps_and_ends_where_a_small_fixed_start_does():
                 other.results[0].steps[name], (other.results[0].n_steps - 1)[:, None, None], axis=1
             )
             np.testing.assert_allclose(end, reference, rtol=0, atol=1e-9)
-
-
-@pytest.mark.skipif(not NUMBA_AVAILABLE, reason="the compiled stepper needs numba (ncstab[compiled])")
-@pytest.mark.parametrize("law", ["cundall_strack", "weakly_hypoelastic", "mcnamara", "turco"])
-def test_both_steppers_start_with_the_same_estimate(law):
-    parameters = {"gamma": [0.5, 2.0], "alpha0": [0.5, 0.9]}
-    numpy_path = _follow(PathOptions(max_step=1.0), law, parameters)
-    compiled_path = _follow(PathOptions(max_step=1.0, backend="compiled"), law, parameters)
-    np.testing.assert_array_equal(_first_steps(compiled_path), _first_steps(numpy_path))
 
 
 @pytest.mark.parametrize(("value", "expected"), [('"auto"', "auto"), ("0.01", 0.01), ("1e-4", 1e-4)])

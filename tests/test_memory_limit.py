@@ -22,27 +22,27 @@ SPEC = SystemSpec(secondary_contacts="ignore")
 LIMIT = 28
 
 
-def _follow(backend: str):
-    return follow(SPEC, "cundall_strack", PROGRAMME, GRID, PathOptions(backend=backend))
+def _follow():
+    return follow(SPEC, "cundall_strack", PROGRAMME, GRID, PathOptions())
 
 
-@pytest.fixture(scope="module", params=["compiled", "numpy"])
-def limited(request):
-    """(backend, the run without a limit, the run with LIMIT states per case)."""
+@pytest.fixture(scope="module")
+def limited():
+    """(the run without a limit, the run with LIMIT states per case)."""
     import ncstab.paths.stepper as stepper_module
 
-    free = _follow(request.param)
+    free = _follow()
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(stepper_module, "state_limit", lambda size, bytes_per_state, available: LIMIT)
-        capped = _follow(request.param)
-    return request.param, free, capped
+        capped = _follow()
+    return free, capped
 
 
 def test_the_cases_within_the_limit_finish_as_without_it_and_the_others_fail_with_memory(limited):
     """Each case whose next step could store more than LIMIT states fails with
     failed:memory; the cases that never come near it are the same to the bit; a failed
     case's stored states are the first ones of its unlimited path, at most LIMIT of them."""
-    _, free, capped = limited
+    free, capped = limited
     free_count, count = free.results[0].n_steps.ravel(), capped.results[0].n_steps.ravel()
     status = capped.status.ravel()
     assert (free.status.ravel() == "finished").all()
@@ -62,24 +62,12 @@ def test_the_cases_within_the_limit_finish_as_without_it_and_the_others_fail_wit
 
 
 def test_the_failure_says_which_stage_the_limit_and_what_to_change(limited):
-    _, _, capped = limited
+    _, capped = limited
     messages = set(capped.message.ravel()[capped.status.ravel() == "failed:memory"])
     assert len(messages) == 1
     message = messages.pop()
     assert message.startswith(f"stage 1: the path needs more than {LIMIT} stored states")
     assert "9 cases" in message and "raise sample_step" in message and "--chunk-cases" in message
-
-
-def test_both_steppers_fail_the_same_cases_at_the_same_state():
-    """The compiled loop pauses where its next step would overfill the recorder, and fails
-    there; the numpy stepper checks before each step: the same rule, the same cases."""
-    import ncstab.paths.stepper as stepper_module
-
-    with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(stepper_module, "state_limit", lambda size, bytes_per_state, available: LIMIT)
-        compiled, numpy = _follow("compiled"), _follow("numpy")
-    np.testing.assert_array_equal(compiled.status, numpy.status)
-    np.testing.assert_array_equal(compiled.results[0].n_steps, numpy.results[0].n_steps)
 
 
 def test_state_limit_is_a_share_of_the_memory_for_every_case():

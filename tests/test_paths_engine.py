@@ -727,8 +727,7 @@ def test_secondary_contact_activate_adds_the_spring_and_continues():
         np.testing.assert_allclose(states["K"][on_kink, 0, 0], law_tangent[on_kink, 0, 0] + 2 * kappa, rtol=0, atol=1e-10)
 
 
-@pytest.mark.parametrize("backend", ["numpy", "compiled"])
-def test_a_contact_that_opens_at_a_corner_follows_the_open_branch_into_its_side(backend):
+def test_a_contact_that_opens_at_a_corner_follows_the_open_branch_into_its_side():
     """McNamara, gamma = 0.79, F2* = 0.58 held, D1* driven to 0.6: the left-right pair,
     closed since the preload, opens at D1* = 0.5994 where Delta2* comes back to
     sin(alpha0) - 1/2.  There the motion kept through the switch (F1* rising) would lead
@@ -745,7 +744,7 @@ def test_a_contact_that_opens_at_a_corner_follows_the_open_branch_into_its_side(
         "mcnamara",
         [{"hold": {"F1": 0.0}, "drive": {"F2": preload}}, {"hold": {"F2": "current"}, "drive": {"D1": 0.6}}],
         {"gamma": gamma, "alpha0": ALPHA0},
-        PathOptions(max_steps=2000, backend=backend),
+        PathOptions(max_steps=2000),
     )
     states, _, status = case_states(path, "mcnamara")
     assert status == "finished"
@@ -770,21 +769,20 @@ def test_a_no_tension_contact_pulled_by_a_force_fails_with_a_singular_control(la
     """F2* driven to -0.3 (tension) with F1* held: the normal contact, touching at rest,
     opens at once, and on its open branch no force can be carried (N = 0, T = 0 at
     rest: K is singular, det of the force-controlled block 0).  The case fails
-    there with ``singular_control``, on both steppers alike, the switch state
+    there with ``singular_control``, at both gammas alike, the switch state
     stored (F = 0).  Before, the path ran off along the open branch (u* of -200
     with F = 0) until ``max_steps``, storing up to 50 states per step."""
     messages = []
-    for backend in ("numpy", "compiled"):
-        path = follow(
-            SystemSpec(secondary_contacts="activate"), law_name, [{"hold": {"F1": 0.0}, "drive": {"F2": -0.3}}],
-            {"gamma": [0.5, 2.0], "alpha0": ALPHA0}, PathOptions(max_steps=50, backend=backend),
-        )
-        for gamma in (0.5, 2.0):
-            states, _, status = case_states(path, law_name, gamma=gamma)
-            assert status == "failed:singular_control"
-            assert len(states["s"]) == 2 and np.abs(states["F"]).max() < 1e-12
-            result, k = path.case(law_name, gamma=gamma)
-            messages.append(str(result.message[k]))
+    path = follow(
+        SystemSpec(secondary_contacts="activate"), law_name, [{"hold": {"F1": 0.0}, "drive": {"F2": -0.3}}],
+        {"gamma": [0.5, 2.0], "alpha0": ALPHA0}, PathOptions(max_steps=50),
+    )
+    for gamma in (0.5, 2.0):
+        states, _, status = case_states(path, law_name, gamma=gamma)
+        assert status == "failed:singular_control"
+        assert len(states["s"]) == 2 and np.abs(states["F"]).max() < 1e-12
+        result, k = path.case(law_name, gamma=gamma)
+        messages.append(str(result.message[k]))
     assert len(set(messages)) == 1 and messages[0].startswith("stage 1: a contact switch led onto a branch")
 
 
@@ -837,8 +835,7 @@ def test_stop_at_limit_point_still_records_the_coincident_hill_loss():
     assert abs(result.events["hill_loss"]["s"][k] - result.events["limit_point"]["s"][k]) < 2e-10
 
 
-@pytest.mark.parametrize("backend", ["numpy", "compiled"])
-def test_a_long_step_past_a_target_near_the_domain_edge_finishes(backend):
+def test_a_long_step_past_a_target_near_the_domain_edge_finishes():
     """Soft Cundall-Strack (gamma = 0.1), F2* = 0, D1* driven to 0.6: alpha ends at
     1.47, near pi/2.  A step of up to max_step = 1 reaches past the target, out of
     the admissible domain; the target is crossed in an earlier piece of the step,
@@ -848,8 +845,8 @@ def test_a_long_step_past_a_target_near_the_domain_edge_finishes(backend):
     first and the case failed with left_domain."""
     programme = [{"hold": {"F1": 0.0}, "drive": {"F2": 0.0}}, {"hold": {"F2": "current"}, "drive": {"D1": 0.6}}]
     parameters = {"gamma": 0.1, "alpha0": ALPHA0}
-    long = follow(IGNORE, "cundall_strack", programme, parameters, PathOptions(max_step=1.0, backend=backend))
-    short = follow(IGNORE, "cundall_strack", programme, parameters, PathOptions(max_step=0.02, backend=backend))
+    long = follow(IGNORE, "cundall_strack", programme, parameters, PathOptions(max_step=1.0))
+    short = follow(IGNORE, "cundall_strack", programme, parameters, PathOptions(max_step=0.02))
     assert long.status.tolist() == ["finished"] == short.status.tolist()
     assert long.results[0].counters["accepted"][0] < short.results[0].counters["accepted"][0] / 3
     end_long, end_short = (p.to_dataset().isel(law=0) for p in (long, short))

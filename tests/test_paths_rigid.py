@@ -136,37 +136,55 @@ def test_rigid_dataset_is_labelled_in_units_of_2r_kt():
 
 
 @pytest.mark.parametrize("secondary", ["activate", "stop"])
-def test_the_pure_shear_limit_runs_on_the_compiled_loop_as_on_the_numpy_stepper(secondary):
-    """The pure-shear limit runs by default on the general models' compiled loop
-    (ncstab.paths.compiled_rigid: state coordinates (alpha, Nhat), then (Nhat, Rhat) once
-    a gap blocks the chain).  Against the numpy stepper, for a rotational, a rate and a
-    translational law at two alpha0, blocked (activate) or stopped at the contact (both
-    evaluate the state by the same compiled kernel, so this checks the loop's stepping,
-    switching and blocking; the closed forms above check the kernel): the
-    same statuses, the events and the ends to 1e-12 (sums in another order: measured
-    3e-15; each event a root located to event_tol on paths that agree far closer, each end
-    at the stage's target, projected onto equilibrium for the total forms).  The stored
-    states in between sit at slightly different arclengths (a last-bit change of the
-    DOP853 error estimate moves the next step size), as on every general model
-    (tests/test_compiled_general.py); tests/test_golden.py compares every stored state of
-    the seed's Figs. 14-15 to 1e-12 with the steps of the golden (max_step 0.02, every
-    step stored)."""
+def test_the_pure_shear_limit_follows_the_closed_forms_at_either_alpha0_blocked_or_stopped(secondary):
+    """The closed forms above, for a rotational, a rate and a translational law in one
+    batch at two alpha0 (pi/4 and pi/5), the second contact blocking the chain
+    (activate) or stopping the case (stop): the first branch Eq. (62) / (65), the
+    contact at alpha_max with Delta_1 = cos(alpha0) - 1/2 (Eq. 66-68), the end at the
+    target F1 = 1 on the blocked branch or at the contact; and the work, recorded as
+    1/2 int F1 dDelta_1 (the diamond's work_factor, per contact, seed Eq. 5), in closed
+    form along the first branch and constant on the blocked one (Delta_1 fixed, F2 = 0):
+    (alpha - alpha0)^2 / 2 for the rotational laws (Eq. 61-62: dDelta_1 = sin(alpha)
+    dalpha), sin^2(alpha - alpha0) / 2 for Turco's (Eq. 64-65: dDelta_1 = sin(2 alpha
+    - alpha0) dalpha).  Tolerances: PATH_TOL on the path, EVENT_TOL at the contact."""
     laws = ["mcnamara", "cundall_strack", "turco"]
-    parameters = {"alpha0": [ALPHA0, math.pi / 5]}
-    programme = [{"hold": {"F2": 0.0}, "drive": {"F1": 1.0}}]
-    spec = SystemSpec(normal="rigid", secondary_contacts=secondary)
-    numpy_run = follow(spec, laws, programme, parameters, PathOptions(backend="numpy")).to_dataset()
-    default_run = follow(spec, laws, programme, parameters).to_dataset()
-    assert default_run.attrs["engine"].count("compiled stepper") == len(laws)
-    np.testing.assert_array_equal(default_run["status"].values, numpy_run["status"].values)
-    expected = "finished" if secondary == "activate" else "stopped:secondary_contact"
-    assert (default_run["status"].values == expected).all()
-    for name in ("secondary_contact_s", "secondary_contact_u", "secondary_contact_F", "secondary_contact_alpha",
-                 "controllability_loss_s"):
-        np.testing.assert_allclose(default_run[name].values, numpy_run[name].values, rtol=0, atol=1e-12,
-                                   equal_nan=True, err_msg=name)
-    last = default_run["n_steps"] - 1
-    for name in ("u", "F", "lam", "work", "alpha", "N", "T"):
-        np.testing.assert_allclose(default_run[name].isel(step=last).values,
-                                   numpy_run[name].isel(step=numpy_run["n_steps"] - 1).values,
-                                   rtol=0, atol=1e-12, err_msg=name)
+    alpha0s = [ALPHA0, math.pi / 5]
+    path = follow(
+        SystemSpec(normal="rigid", secondary_contacts=secondary), laws,
+        [{"hold": {"F2": 0.0}, "drive": {"F1": 1.0}}], {"alpha0": alpha0s},
+    )
+    for law in laws:
+        for alpha0 in alpha0s:
+            result, k = path.case(law, alpha0=alpha0)
+            n = result.n_steps[k]
+            steps = {key: value[k, :n] for key, value in result.steps.items()}
+            alpha, f1, d1 = steps["alpha"], steps["F"][:, 0], steps["u"][:, 0]
+            if law == "turco":
+                alpha_max = brentq(lambda a, a0=alpha0: math.cos(a) * math.cos(a - a0) - 0.5, alpha0, math.pi / 2, xtol=1e-15)
+                expected_f1 = np.sin(2 * alpha - 2 * alpha0) / np.sin(2 * alpha - alpha0)
+                expected_d1 = np.cos(alpha0) - np.cos(alpha) * np.cos(alpha - alpha0)
+                expected_work = np.sin(np.minimum(alpha, alpha_max) - alpha0) ** 2 / 2
+            else:
+                alpha_max = math.pi / 3
+                expected_f1 = 2 * (alpha - alpha0) / np.sin(alpha)
+                expected_d1 = np.cos(alpha0) - np.cos(alpha)
+                expected_work = (np.minimum(alpha, alpha_max) - alpha0) ** 2 / 2
+            free = alpha < alpha_max - 1e-9
+            assert free.sum() >= 10, (law, alpha0)
+            np.testing.assert_allclose(steps["F"][:, 1], 0.0, atol=PATH_TOL)
+            np.testing.assert_allclose(f1[free], expected_f1[free], atol=PATH_TOL, err_msg=law)
+            np.testing.assert_allclose(d1, expected_d1, atol=PATH_TOL, err_msg=law)
+            np.testing.assert_allclose(steps["work"], expected_work, atol=PATH_TOL, err_msg=law)
+            event = result.events["secondary_contact"]
+            assert event["found"][k]
+            assert event["alpha"][k] == pytest.approx(alpha_max, abs=EVENT_TOL)
+            assert event["u"][k, 0] == pytest.approx(math.cos(alpha0) - 0.5, abs=EVENT_TOL)
+            assert alpha.max() == pytest.approx(alpha_max, abs=EVENT_TOL)
+            if secondary == "activate":
+                assert result.status[k] == "finished"
+                assert f1[-1] == pytest.approx(1.0, abs=PATH_TOL) and (~free).sum() >= 2
+                np.testing.assert_allclose(d1[~free], math.cos(alpha0) - 0.5, atol=EVENT_TOL)
+            else:
+                assert result.status[k] == "stopped:secondary_contact"
+                assert alpha[-1] == pytest.approx(alpha_max, abs=EVENT_TOL)  # the contact state, stored last
+                assert d1[-1] == pytest.approx(math.cos(alpha0) - 0.5, abs=EVENT_TOL)
