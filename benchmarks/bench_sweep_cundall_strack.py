@@ -1,31 +1,33 @@
-"""Sweep throughput: the batched engine against one solve_ivp per case, same run.
+"""Sweep throughput: the engine against one solve_ivp per case, same run.
 
 The problem (issue 3): the Cundall--Strack diamond, F2* held at 0 and Delta_1*
 driven from 0 to 0.2, for 4,096 cases (64 gamma in [0.1, 2] x 64 alpha0 in
 [0.3, 1.2]).  Both methods must reach F1* and Delta_2* at Delta_1* = 0.2
 within 1e-8 of a tight reference (solve_ivp DOP853, rtol 1e-13), checked on a
 random subset of cases.  The baseline integrates the seed's Eq. (38) written
-by hand with scalar math, which is the fastest plain-Python form of the loop.
+by hand with scalar math, which is the fastest plain-Python form of the loop,
+at the engine's tolerances (rtol 1e-10, atol 1e-12).
 
 Run:  python benchmarks/bench_sweep_cundall_strack.py [--cases-per-side 64] [--repeat 3]
+      [--engine-runs 10] [--threads N]
 
-The engine runs twice: with the default numpy stepper (every case advances
-in numpy passes over the batch) and with the compiled stepper
-(``PathOptions(backend="compiled")``, numba, one compiled loop per case,
-the same steps; needs ``pip install 'ncstab[compiled]'``).  Its compilation
-(once per law and process) happens before the timed runs and is reported
-apart.
+The engine runs with **default options** (``PathOptions()``: rtol 1e-10, atol
+1e-12, ``max_step`` 1, stored states and sign checks at most ``sample_step``
+0.02 apart; the compiled stepper, numba, one compiled loop per case, on every
+core unless ``--threads`` says fewer).  Its compilation (once per form of law
+and machine, or loading it from the cache) happens before the timed runs and
+is reported apart.
 
 Prints the times (the median of ``--repeat`` runs of each method, taken in
-turn in the same process), the ratios of those medians, and the accuracy of each.
-Each engine time is the mean of a few sweeps run back to back (10 compiled,
-2 numpy: ``--compiled-runs``, ``--numpy-runs``), so that every timed window
-lasts about 0.3 s or more, like one run of the loop (about 3 s): a pause of
-the machine of a few milliseconds would otherwise weigh a hundred times more
-on a 30 ms sweep than on the loop.  The engine also
-locates every event (the secondary-contact gaps reach zero in many cases);
-a second baseline does that job too, with solve_ivp event functions.  This is a benchmark,
-not a test: nothing here asserts a time.
+turn in the same process), the ratios of those medians, the ratio run by run,
+and the accuracy of each.  Each engine time is the mean of ``--engine-runs``
+sweeps run back to back (10), so that every timed window lasts about 0.3 s or
+more, like one run of the loop (about 2-3 s): a pause of the machine of a few
+milliseconds would otherwise weigh ten to a hundred times more on one sweep
+(0.03-0.13 s) than on the loop.  The engine also locates every event (the secondary-contact gaps
+reach zero in many cases); a second baseline does that job too, with
+solve_ivp event functions.  This is a benchmark, not a test: nothing here
+asserts a time.
 """
 
 from __future__ import annotations
@@ -34,13 +36,13 @@ import argparse
 import math
 import statistics
 import time
-from dataclasses import replace
 
 import numpy as np
 from scipy.integrate import solve_ivp
 
 import ncstab
 from ncstab.paths import PathOptions, SystemSpec
+from ncstab.paths.threads import thread_count, using_threads
 
 TARGET = 0.2
 
@@ -111,74 +113,66 @@ def main() -> None:
     parser.add_argument("--cases-per-side", type=int, default=64)
     parser.add_argument("--check", type=int, default=128, help="cases checked against the tight reference")
     parser.add_argument("--repeat", type=int, default=1, help="runs of each method; the median is reported")
-    parser.add_argument("--numpy-runs", type=int, default=2, help="back-to-back sweeps per timing, numpy stepper")
-    parser.add_argument("--compiled-runs", type=int, default=10, help="back-to-back sweeps per timing, compiled")
+    parser.add_argument("--engine-runs", type=int, default=10, help="back-to-back sweeps per timing of the engine")
+    parser.add_argument("--threads", type=int, default=None,
+                        help="threads of the compiled stepper (default: every core, as the engine)")
     args = parser.parse_args()
     side = args.cases_per_side
     gamma = np.linspace(0.1, 2.0, side)
     alpha0 = np.linspace(0.3, 1.2, side)
     gg, aa = (m.ravel() for m in np.meshgrid(gamma, alpha0, indexing="ij"))
     n = gg.size
+    options = PathOptions()  # the defaults: rtol 1e-10, atol 1e-12, max_step 1, sample_step 0.02
 
-    ncstab.follow(SystemSpec(secondary_contacts="ignore"), "cundall_strack",
-                  [{"hold": {"F2": 0.0}, "drive": {"D1": 0.01}}], {"gamma": 1.0})  # compile once (sympy)
-    options = PathOptions(rtol=1e-10, atol=1e-12, max_step=1.0)
-    compiled = replace(options, backend="compiled")
-    start = time.perf_counter()
-    run_engine(gamma[:1], alpha0[:1], compiled)  # compile once (numba)
-    compile_time = time.perf_counter() - start
+    with using_threads(args.threads):
+        start = time.perf_counter()
+        run_engine(gamma[:1], alpha0[:1], options)  # sympy derivation, numba compilation (or the cache)
+        compile_time = time.perf_counter() - start
 
-    baseline_rtol, baseline_atol = 1e-10, 1e-12
-    times: dict[str, list[float]] = {"engine": [], "compiled": [], "baseline": [], "baseline_events": []}
-    def timed_engine(engine_options: PathOptions, runs: int) -> tuple[float, tuple]:
-        """Mean time of ``runs`` back-to-back sweeps (a timed window of ~0.3 s or more)."""
-        start = time.perf_counter()
-        for _ in range(runs):
-            result = run_engine(gamma, alpha0, engine_options)
-        return (time.perf_counter() - start) / runs, result
+        baseline_rtol, baseline_atol = options.rtol, options.atol
+        times: dict[str, list[float]] = {"engine": [], "baseline": [], "baseline_events": []}
 
-    for _ in range(args.repeat):  # interleaved, so a slow spell of the machine hits every method
-        elapsed, (engine, path) = timed_engine(options, args.numpy_runs)
-        times["engine"].append(elapsed)
-        elapsed, (fast, fast_path) = timed_engine(compiled, args.compiled_runs)
-        times["compiled"].append(elapsed)
-        start = time.perf_counter()
-        baseline = run_baseline(gg, aa, baseline_rtol, baseline_atol)
-        times["baseline"].append(time.perf_counter() - start)
-        start = time.perf_counter()
-        run_baseline(gg, aa, baseline_rtol, baseline_atol, events=True)
-        times["baseline_events"].append(time.perf_counter() - start)
-    engine_time, compiled_time, baseline_time, baseline_events_time = (statistics.median(times[k]) for k in times)
+        def timed_engine(runs: int) -> tuple[float, tuple]:
+            """Mean time of ``runs`` back-to-back sweeps (a timed window of ~0.3 s or more)."""
+            start = time.perf_counter()
+            for _ in range(runs):
+                result = run_engine(gamma, alpha0, options)
+            return (time.perf_counter() - start) / runs, result
+
+        for _ in range(args.repeat):  # interleaved, so a slow spell of the machine hits every method
+            elapsed, (engine, path) = timed_engine(args.engine_runs)
+            times["engine"].append(elapsed)
+            start = time.perf_counter()
+            baseline = run_baseline(gg, aa, baseline_rtol, baseline_atol)
+            times["baseline"].append(time.perf_counter() - start)
+            start = time.perf_counter()
+            run_baseline(gg, aa, baseline_rtol, baseline_atol, events=True)
+            times["baseline_events"].append(time.perf_counter() - start)
+        threads = thread_count()
+    engine_time, baseline_time, baseline_events_time = (statistics.median(times[k]) for k in times)
 
     rng = np.random.default_rng(0)
     subset = rng.choice(n, size=min(args.check, n), replace=False)
     reference = run_baseline(gg[subset], aa[subset], 1e-13, 1e-14)
     engine_error = np.abs(engine[subset] - reference).max()
-    compiled_error = np.abs(fast[subset] - reference).max()
-    same = np.array_equal(path.status, fast_path.status) and np.array_equal(
-        path.results[0].n_steps, fast_path.results[0].n_steps
-    )
-    gap = np.abs(engine - fast).max()
     baseline_error = np.abs(baseline[subset] - reference).max()
-    statuses = dict(zip(*np.unique(path.status, return_counts=True)))
+    statuses = {str(s): int(c) for s, c in zip(*np.unique(path.status, return_counts=True))}
 
-    print(f"cases                      {n}   (median of {args.repeat} run(s) of each method)")
-    print(f"engine, numpy stepper      {engine_time:8.3f} s   max error {engine_error:.2e}   statuses {statuses}")
-    print(f"engine, compiled stepper   {compiled_time:8.3f} s   max error {compiled_error:.2e}   "
-          f"(numba compilation before: {compile_time:.1f} s)")
-    print(f"  compiled vs numpy: same statuses and steps per case: {same}; largest difference "
-          f"of (D2, F1) at the end {gap:.1e}")
+    print(f"cases                      {n}   (median of {args.repeat} run(s) of each method; "
+          f"the engine on {threads} thread(s))")
+    print(f"engine: {path.results[0].engine}")
+    print(f"engine (default options)   {engine_time:8.3f} s   max error {engine_error:.2e}   statuses {statuses}   "
+          f"(compilation or cache load before: {compile_time:.1f} s)")
     print(f"baseline (solve_ivp loop)  {baseline_time:8.3f} s   max error {baseline_error:.2e}")
     print(f"baseline with the same events located  {baseline_events_time:8.3f} s")
-    for name, value in (("numpy", engine_time), ("compiled", compiled_time)):
-        print(f"ratio baseline / engine ({name:8s})        {baseline_time / value:8.1f} x (no events in the baseline)")
-        print(f"ratio baseline+events / engine ({name:8s}) {baseline_events_time / value:8.1f} x (same job)")
-    per_run = [b / c for b, c in zip(times["baseline"], times["compiled"])]
-    print(f"ratio baseline / engine (compiled), run by run: {', '.join(f'{r:.0f}' for r in per_run)} x")
-    attempts = path.results[0].counters["accepted"] + path.results[0].counters["rejected"]
-    print(f"step attempts per case: {attempts.mean():.2f} (accepted {path.results[0].counters['accepted'].mean():.2f})")
-    located = int(path.results[0].counters["located"].sum())
-    print(f"events located by the engine (the baseline locates none): {located}")
+    print(f"ratio baseline / engine           {baseline_time / engine_time:8.1f} x (no events in the baseline)")
+    print(f"ratio baseline+events / engine    {baseline_events_time / engine_time:8.1f} x (same job)")
+    per_run = [b / e for b, e in zip(times["baseline"], times["engine"])]
+    print(f"ratio baseline / engine, run by run: {', '.join(f'{r:.0f}' for r in per_run)} x")
+    counters = path.results[0].counters
+    attempts = counters["accepted"] + counters["rejected"]
+    print(f"step attempts per case: {attempts.mean():.2f} (accepted {counters['accepted'].mean():.2f})")
+    print(f"events located by the engine (the baseline locates none): {int(counters['located'].sum())}")
 
 
 if __name__ == "__main__":

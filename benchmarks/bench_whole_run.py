@@ -11,18 +11,17 @@ paid once and cancel.  The fixed cost (about 10 s) is large against the
 marginal one (a few tenths of a second for 4,096 cases), so on a busy machine
 take a larger study (``--big 128``) and several repeats.  The loop runs 256 of the cases, in the same run.
 
-Each command runs with ``--backend`` given to this script (``auto``, the
-default of study files: the compiled stepper here; or ``numpy``, or
-``compiled``), the figures of the study (a
-parameter-plane field of the end state, and the load--displacement field) and
-the default archive.
+Each command runs with the study's engine options (the compiled stepper,
+the only one; ``sample_step = 1``: every step stored once), the figures of
+the study (a parameter-plane field of the end state, and the
+load--displacement field) and the default archive.
 
 With ``--in-process`` each command is ``ncstab.cli.main`` called in this
 process after a warm-up run: the same work (run, archive, figures), without
 the start-up of a new interpreter, whose jitter (about 0.5 s on this machine)
 is larger than the marginal cost of 4,000 cases.
 
-Run:  python benchmarks/bench_whole_run.py [--backend auto|numpy|compiled] [--repeat 3] [--big 64] [--in-process]
+Run:  python benchmarks/bench_whole_run.py [--repeat 3] [--big 64] [--in-process]
 
 A benchmark, not a test: nothing here asserts a time.
 """
@@ -67,19 +66,18 @@ rtol = 1e-10
 atol = 1e-12
 max_step = 1.0
 sample_step = 1.0
-backend = "{backend}"
 
 [output]
 figures = ["load_displacement", "load_rotation"]
 """
 
 
-def run_command(directory: Path, side: int, backend: str, in_process: bool = False) -> float:
+def run_command(directory: Path, side: int, in_process: bool = False) -> float:
     """Wall time of ``ncstab run`` on a side x side study (archive and figures written);
     ``in_process``: ``ncstab.cli.main`` called in this process (imports and compiled
     loops loaded once, by the warm-up run), not a new process."""
     study = directory / f"whole_run_{side}.toml"
-    study.write_text(STUDY.format(side=side, target=TARGET, backend=backend))
+    study.write_text(STUDY.format(side=side, target=TARGET))
     output = directory / f"whole_run_{side}.nc"
     if in_process:
         from ncstab.cli import main as ncstab_main
@@ -114,7 +112,6 @@ def loop_per_case(cases: int) -> float:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--backend", choices=("auto", "numpy", "compiled"), default="auto")
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--loop-cases", type=int, default=256)
     parser.add_argument("--big", type=int, default=64, help="cases per side of the large study")
@@ -126,11 +123,11 @@ def main() -> None:
     big, small = args.big, args.small
     with tempfile.TemporaryDirectory() as name:
         directory = Path(name)
-        run_command(directory, small, args.backend, args.in_process)  # warm: compilation caches, file system
+        run_command(directory, small, args.in_process)  # warm: compilation caches, file system
         marginal, loop = [], []
         for _ in range(args.repeat):
-            t_big = run_command(directory, big, args.backend, args.in_process)
-            t_small = run_command(directory, small, args.backend, args.in_process)
+            t_big = run_command(directory, big, args.in_process)
+            t_small = run_command(directory, small, args.in_process)
             marginal.append((t_big - t_small) / (big * big - small * small))
             loop.append(loop_per_case(args.loop_cases))
             print(
@@ -140,7 +137,7 @@ def main() -> None:
             )
     m, b = statistics.median(marginal), statistics.median(loop)
     where = "in this process" if args.in_process else "new processes"
-    print(f"backend {args.backend} ({where}): marginal cost of ncstab run {1e3 * m:.3f} ms/case (median of "
+    print(f"ncstab run ({where}): marginal cost of ncstab run {1e3 * m:.3f} ms/case (median of "
           f"{args.repeat}); solve_ivp loop {1e3 * b:.3f} ms/case; ratio {b / m:.1f}x")
     if args.repeat >= 4:
         # The marginal cost is a difference of two whole-process times of about 8 s each: where

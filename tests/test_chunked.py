@@ -6,7 +6,7 @@ fall anywhere in the sweep.  Every archive is compared with the archive of
 the plain in-process run (:func:`run_study` + :func:`write_dataset`) by
 ``xarray.testing.assert_identical``: not a tolerance but bit-identical
 numbers, since each case gets the same floating-point operations whatever the
-batch it is followed in (``ncstab.paths.integrator.combine_stages``).  Only the
+batch it is followed in (the compiled loop runs each case alone).  Only the
 ``created`` time stamp differs between two runs.
 """
 
@@ -23,7 +23,6 @@ import pytest
 import xarray as xr
 
 from ncstab.cli import main
-from ncstab.paths.integrator import combine_stages
 from ncstab.studies import (
     ResumeError,
     open_study,
@@ -81,17 +80,6 @@ def assert_same_archive(path: Path, reference: xr.Dataset) -> None:
     xr.testing.assert_identical(archive, expected)
     assert not parts_directory(path).exists()
     assert sorted(p.name for p in path.parent.iterdir()) == [path.name], "no temporary file is left"
-
-
-def test_combining_stages_gives_each_case_the_same_bits_in_any_batch(rng):
-    """The DOP853 stage sums of a case do not depend on the other cases of its batch."""
-    stages = rng.standard_normal((12, 1000, 7))
-    weights = rng.standard_normal((3, 12))
-    whole = combine_stages(weights, stages)
-    for start, stop in [(0, 1), (1, 4), (3, 1000), (517, 999)]:
-        assert np.array_equal(combine_stages(weights, stages[:, start:stop]), whole[:, start:stop])
-    # The same sums as a BLAS contraction, to rounding (12 terms of size ~1).
-    np.testing.assert_allclose(whole, np.einsum("pk,kbm->pbm", weights, stages), rtol=0, atol=1e-13)
 
 
 def test_the_chunks_cover_every_case_once_in_uneven_runs(study):

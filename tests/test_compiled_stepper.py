@@ -500,12 +500,14 @@ def test_the_dataset_records_which_engine_ran_each_law():
         assert parts[law].startswith("compiled stepper (numba "), parts[law]
 
 
-def test_without_numba_the_compiled_backend_asks_for_the_extra(monkeypatch):
+def test_without_numba_the_engine_asks_for_it(monkeypatch):
+    """numba is a core dependency: an install without it gets a sentence saying what to
+    install, with the default options (there is no other engine to fall back on)."""
     import ncstab.paths.compiled as compiled_module
 
     monkeypatch.setattr(compiled_module, "NUMBA_AVAILABLE", False)
-    with pytest.raises(RuntimeError, match=r"needs numba, a dependency of ncstab: pip install numba"):
-        follow(IGNORE, "mcnamara", UNIAXIAL, {"gamma": 0.5, "alpha0": ALPHA0}, PathOptions(backend="compiled"))
+    with pytest.raises(RuntimeError, match=r"numba, a dependency of ncstab that is not installed here: pip install numba"):
+        follow(IGNORE, "mcnamara", UNIAXIAL, {"gamma": 0.5, "alpha0": ALPHA0}, PathOptions())
 
 
 def test_backend_option_is_validated():
@@ -515,6 +517,19 @@ def test_backend_option_is_validated():
         PathOptions(backend="fortran")
     with pytest.raises(ValueError, match=r"PathOptions\.backend"):
         PathOptions(backend=3)
+
+
+def test_the_retired_numpy_backend_is_an_error_that_says_so():
+    """An old script or study file asking for the numpy stepper is told it was retired
+    and what to do, in Python and as a study-file error naming the field (exit code 2)."""
+    from ncstab.studies import StudyFileError, parse_study
+
+    with pytest.raises(ValueError, match=r"the numpy stepper was retired.*remove the option"):
+        PathOptions(backend="numpy")
+    with pytest.raises(StudyFileError) as info:
+        parse_study(STUDY + '[options]\nbackend = "numpy"\n', "study.toml")
+    assert "options.backend" in info.value.fields
+    assert "the numpy stepper was retired" in str(info.value)
 
 
 STUDY = """\

@@ -93,17 +93,3 @@ def test_hill_s_loss_is_found_where_a_stored_state_lands_on_it():
         landed = np.abs(ds["load"].values.ravel() - 2.0) < 1e-12
         assert landed.any() and np.abs(ds["hill"].values.ravel()[landed]).max() < 1e-13  # the premise
         assert abs(float(ds["hill_loss_load"].item()) - 2.0) <= 1e-10
-
-
-def test_an_indicator_without_a_sign_keeps_the_last_sign_it_had():
-    """events.signs_kept, exactly: a 0 (within rounding of zero) keeps the value before
-    it, so +, 0, - is one sign change over the step that leaves 0 and +, 0, + none;
-    NaN and the stage target's column (reached at 0) are kept as they are."""
-    from ncstab.paths.events import signs_kept
-
-    before = np.array([[1.0, -2.0, 3.0, -0.5]])
-    after = np.array([[0.0, 0.0, np.nan, 0.0]])
-    kept = signs_kept(before, after, target=3)
-    np.testing.assert_array_equal(kept, [[1.0, -2.0, np.nan, 0.0]])
-    later = np.array([[-1.0, -4.0, 1.0, 1.0]])
-    assert list(np.sign(kept[0, :2]) * np.sign(later[0, :2]) < 0) == [True, False]

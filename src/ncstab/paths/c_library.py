@@ -4,9 +4,9 @@ Where the CPU has AVX-512 (numpy 2: its ``X86_V4`` dispatch), numpy evaluates
 ``arctan2`` with its own SIMD code, which differs from the C library's ``atan2``
 by one rounding for about 7 % of arguments (14,657 of 200,000 normal pairs on
 the machine of 2026-12-02; ``sin``, ``cos`` and ``sqrt`` agree on all of them).
-The compiled stepper's loop calls the C library (numba).  So that both steppers
-compute the same alpha, bit for bit, on every machine, the numpy stepper takes
-it from :func:`atan2`: ``math.atan2`` as a numba ufunc, generated once into the
+The compiled stepper's loop calls the C library (numba).  So that the batched
+numpy evaluation of the diamond (stage entry, branch switching) computes the
+loop's alpha, bit for bit, on every machine, it takes it from :func:`atan2`: ``math.atan2`` as a numba ufunc, generated once into the
 cache folder ``compiled`` (:mod:`ncstab.cache`) and compiled once per machine
 (numba caches it beside the module).  Without numba, numpy's ``arctan2`` serves.
 """

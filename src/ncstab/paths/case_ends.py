@@ -1,10 +1,10 @@
-"""How the cases of the numpy stepper end: finished, stopped at an event, or failed with a reason.
+"""How the cases of a batch end: finished, stopped at an event, or failed with a reason.
 
 Each case ends once, with a status (``finished``, ``stopped:<event>``,
 ``failed:<reason>``, :mod:`ncstab.paths.status`) and a message saying what and
 where; the others go on.  :class:`CaseEnds` is the part of
-:class:`ncstab.paths.stepper.BatchStepper` that writes them (the compiled
-stepper ends its cases through the same methods).
+:class:`ncstab.paths.stepper.BatchStepper` that writes them, from the compiled loop's outcomes
+(:meth:`ncstab.paths.compiled_stages.CompiledStages.run`) or at stage entry.
 """
 
 from __future__ import annotations

@@ -8,10 +8,7 @@ import numpy as np
 
 from ncstab.paths.programme import EVENTS
 
-__all__ = ["NUMPY_ENGINE", "CaseResult", "as_strings", "empty_events"]
-
-#: The ``engine`` of a batch the numpy stepper ran.
-NUMPY_ENGINE = "numpy stepper"
+__all__ = ["CaseResult", "as_strings", "empty_events"]
 
 
 @dataclass
@@ -46,8 +43,8 @@ class CaseResult:
         (the internal variable of a rate law); ``stage`` (C,).
     engine
         Which stepper ran the batch, in words (the archive's ``engine``
-        attribute): ``"numpy stepper"``, or the compiled stepper with numba's
-        version, or why the compiled one asked for did not apply.
+        attribute): the compiled stepper with numba's version, and the kernel
+        of the model it ran (:func:`ncstab.paths.engine_choice.choose_engine`).
     """
 
     steps: dict[str, np.ndarray]
@@ -56,8 +53,8 @@ class CaseResult:
     message: np.ndarray
     events: dict[str, dict[str, np.ndarray]]
     counters: dict[str, np.ndarray]
+    engine: str
     cycles: dict[str, np.ndarray] = field(default_factory=dict)
-    engine: str = NUMPY_ENGINE
 
 
 def as_strings(values: np.ndarray) -> np.ndarray:

@@ -1,43 +1,41 @@
 """The compiled stepper: the engine's stepping loop as one numba loop per case.
 
-By default (``PathOptions(backend="auto")``, or ``"compiled"`` asked for) the
-linear and cycle stages of the deformable reduced diamond (the fused state kernel of
-:mod:`ncstab.operators.tangent`, seed Eq. 4 and 30-34) run through this module
-instead of the numpy passes of :class:`ncstab.paths.stepper.BatchStepper`, the
-cases of a stage shared out over threads (:mod:`ncstab.paths.threads`).
-It takes the same steps: the same DOP853 tableau and error norm, the same
-step-size control, the same Newton projection onto equilibrium for laws with a
-total form, the same cofactor tangent of the constrained rate system, the same
-event indicators located by the same Illinois iteration on the same DOP853
-interpolant, the same control path (a line, or the circle of a cycle stage,
-whose turns close where their crossings cut the step and go into the
-stepper's cycle tables), the same cuts at stage targets, stop events and contact switches
-(``secondary_contacts = "activate"``: the spring switches where its gap
-crossing cuts the step; a ``no_tension`` law's normal contact opens or closes
-where its overlap crosses zero and the law's open or closed branch serves
-from there; the direction of motion kept, as in
-:func:`ncstab.paths.contacts.switch_contacts`), and over steps across simple
-bifurcation points (:mod:`ncstab.paths.over_steps`).  Its numbers are the
-numpy stepper's bit for bit where the arithmetic is the same, which the
-tests check for every law (alpha from the C library's ``atan2`` in both:
-:mod:`ncstab.paths.c_library`), and its result for a case depends
-neither on the batch nor on the thread.  Like the numpy stepper it orients
-each tangent by continuity with the motion at the start of its step
-(:func:`ncstab.paths.tangent_field.path_tangent`), so both go straight on
-through a singular point of the control, step for step.
+Every case of every system runs through this loop, the cases of a stage
+shared out over threads (:mod:`ncstab.paths.threads`,
+:mod:`ncstab.paths.compiled_stages`).  Per case it takes DOP853 steps of the
+unit tangent of the constrained rate system (the cofactor tangent, oriented
+by continuity with the motion at the start of its step, so it goes straight
+on through a singular point of the control), with scipy's tableau, error norm
+and step-size control; projects each step's end onto equilibrium by Newton
+for laws with a total form; cuts each accepted step into pieces of at most
+``sample_step`` on its DOP853 interpolant, stores every piece's end and checks
+its indicators' signs there; locates each sign change to ``event_tol`` by the
+Illinois iteration on that interpolant; cuts the step at a stage target, a
+stop event, a contact switch (``secondary_contacts = "activate"``: the spring
+switches where its gap crossing cuts the step; a ``no_tension`` law's normal
+contact opens or closes where its overlap crosses zero, :mod:`ncstab.paths.contacts`)
+or a closed turn of a cycle stage (the circle of its control path); steps
+over simple bifurcation points (:mod:`ncstab.paths.over_steps`) or returns
+the case there to switch branch; finds the domain's edge inside a step
+(:mod:`ncstab.paths.domain_edge`).  Its result for a case depends neither on
+the batch nor on the thread (alpha from the C library's ``atan2``:
+:mod:`ncstab.paths.c_library`).
 
-General models (:mod:`ncstab.paths.loop_general`, :mod:`ncstab.paths.compiled_general`)
+The reduced diamond runs on its fused kernel (the model part
+:mod:`ncstab.paths.loop_model`, :mod:`ncstab.paths.loop_diamond`); general
+models (:mod:`ncstab.paths.loop_general`, :mod:`ncstab.paths.compiled_general`)
 and the pure-shear limit (``normal = "rigid"``, :mod:`ncstab.paths.compiled_rigid`) run
-on the same template with the general model part.  Stage entry, the
-first stored state of a stage and the assembly of the result stay with the
-numpy stepper: this module runs each case from the start of a stage to its
-end (target, stop event or failure).
+on the same template with the general model part.  Stage entry, branch
+switching and the assembly of the result are done once per stage or event,
+in numpy, by :class:`ncstab.paths.stepper.BatchStepper`: this module runs each
+case from the start of a stage to its end (target, stop event, branch switch
+or failure).
 
-numba is a dependency of ncstab (it stays optional at import: without it the
-compiled backend asks for it).  The loop is one per form of law (a total
+numba is a dependency of ncstab (imported lazily: without it the engine asks
+for it).  The loop is one per form of law (a total
 form, or a rate form with T an internal variable), generated as a module in
 the cache folder ``compiled`` (:mod:`ncstab.cache`) and compiled once per
-machine (about 26 s on a 2-core machine; numba caches the machine code beside
+machine (numba caches the machine code beside
 the module).  The law is an argument of the loop: its generated state kernel,
 compiled as a C callback (:data:`LAW_SIGNATURE`, under a second), so a new law
 does not compile the loop again.  The cases of a stage run side by side on
@@ -85,7 +83,6 @@ __all__ = [
     "Outcome",
     "StageLoop",
     "stage_runner",
-    "unsupported_reason",
 ]
 
 #: Columns of the per-event value table.
@@ -151,26 +148,6 @@ def _terms(weights: np.ndarray, lengths: Any) -> tuple[np.ndarray, np.ndarray]:
     return terms, counts
 
 
-def unsupported_reason(batch: Any, programme: Any) -> str | None:
-    """Why the compiled stepper cannot run this batch (``None`` if it can).
-
-    Parameters
-    ----------
-    batch
-        The engine's batch of cases.
-    programme
-        The loading programme.
-    """
-    from ncstab.paths.model import CaseBatch
-
-    if type(batch) is not CaseBatch:  # (general models and the pure-shear limit: engine_choice)
-        return "this system runs on the numpy stepper"
-    kernels = batch._kernels
-    if kernels is None or len(kernels) != (2 if batch.law.definition.no_tension else 1) or batch.n_dof != 2:
-        return "this system has no fused state kernel; it runs on the numpy stepper"
-    return None
-
-
 #: The C signature of a law's kernel in the compiled loop:
 #: ``LAW(l, alpha, cos, sin, T, p, ev)`` (see :func:`_kernel_source`).
 LAW_SIGNATURE = (
@@ -218,8 +195,8 @@ def stage_runner(batch: Any) -> StageLoop:
     """
     if not NUMBA_AVAILABLE:
         raise RuntimeError(
-            "PathOptions.backend = 'compiled' needs numba, a dependency of ncstab: pip install numba "
-            "(or use backend = 'numpy')"
+            "ncstab's path engine is compiled with numba, a dependency of ncstab that is not "
+            "installed here: pip install numba"
         )
     definition = batch.law.definition
     overlap = _overlap_function(definition) if definition.no_tension else None

@@ -29,7 +29,7 @@ if TYPE_CHECKING:
     from ncstab.paths.model_batch import ModelBatch
     from ncstab.paths.stepper import BatchStepper
 
-__all__ = ["GeneralStages", "general_runner", "general_unsupported_reason"]
+__all__ = ["GeneralStages", "general_runner"]
 
 
 @functools.cache
@@ -39,11 +39,6 @@ def general_runner(rate_form: bool) -> StageLoop:
 
     loop = load_module(general_loop_source(rate_form), "ncstab_general_loop").LOOP
     return StageLoop(loop.run, loop.start)
-
-
-def general_unsupported_reason(batch: ModelBatch, programme: Any) -> str | None:
-    """Why the compiled loop cannot run this general model (``None`` if it can)."""
-    return None
 
 
 class GeneralStages(CompiledStages):

@@ -3,8 +3,9 @@
 :class:`CompiledStages` hands every running case of a
 :class:`ncstab.paths.stepper.BatchStepper` to the compiled loop of
 :mod:`ncstab.paths.compiled` for the rest of its current stage, then does
-with the outcome what the numpy passes do: stores the steps, ends or fails
-the case, or enters its next stage (stage entry stays with the stepper).
+with the outcome what it asks: stores the steps, ends or fails the case,
+leaves a bifurcation point along a branch, or enters its next stage (stage
+entry stays with the stepper).
 The cases of a stage run side by side on threads
 (:func:`ncstab.paths.threads.thread_count`: every core unless
 ``NUMBA_NUM_THREADS``, :func:`ncstab.paths.threads.using_threads` or ``ncstab
@@ -20,6 +21,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 
 from ncstab.paths.compiled import EVENT_FIELDS, Outcome, StageLoop
+from ncstab.paths.over_steps import reset_over_steps
 from ncstab.paths.programme import EVENTS
 from ncstab.paths.threads import thread_count
 
@@ -232,8 +234,8 @@ class CompiledStages:
 
     def _fail_beyond_the_limit(self, stepper: BatchStepper, cases: np.ndarray) -> None:
         """Fail the paused cases whose next step could store more states than the
-        recorder's limit (``failed:memory``, as the numpy stepper's ``step`` does: a case
-        pauses where its next step would overfill the recorder, which grows up to the limit)."""
+        recorder's limit (``failed:memory``: a case pauses where its next step would
+        overfill the recorder, which grows up to the limit)."""
         if stepper.recorder.limit is None:
             return
         paused = cases[self.code[cases] == Outcome.PAUSED]
@@ -243,8 +245,7 @@ class CompiledStages:
 
     def _close_turns(self, stepper: BatchStepper, k: int, closed: np.ndarray, values: np.ndarray) -> None:
         """The turns of stage ``k`` the loop closed go into the stepper's cycle tables, in
-        order (:meth:`ncstab.paths.cycle_turns.CycleTurns.close`, as
-        cut_points.close_turns does)."""
+        order (:meth:`ncstab.paths.cycle_turns.CycleTurns.close`)."""
         first = int(stepper.turns.first[k])
         for turn in range(int(stepper.turns.turns[k])):
             cases = np.flatnonzero(closed[:, first + turn])
@@ -277,7 +278,7 @@ class CompiledStages:
                 share.result()
 
     def _end(self, stepper: BatchStepper, cases: np.ndarray) -> None:
-        """Do what each case's outcome asks (the numpy stepper's texts and statuses)."""
+        """Do what each case's outcome asks (:class:`~ncstab.paths.case_ends.CaseEnds`' texts and statuses)."""
         code, detail = self.code[cases], self.detail[cases]
         stopped = code == Outcome.STOPPED
         stepper.stop(cases[stopped], detail[stopped])
@@ -291,8 +292,8 @@ class CompiledStages:
 
     def _switch_branches(self, stepper: BatchStepper, cases: np.ndarray) -> None:
         """Cases the loop returned at a simple bifurcation point of a stage that switches
-        branch leave along the bifurcating branch (cut_points.switch_branches_at, one
-        implementation: :func:`ncstab.paths.branch_switching.leave_along_branch`); their new
+        branch leave along the bifurcating branch
+        (:func:`ncstab.paths.branch_switching.leave_along_branch`); their new
         state is stored, and the loop goes on from it with the motion there as reference."""
         if cases.size == 0:
             return
@@ -307,9 +308,7 @@ class CompiledStages:
         )
         stages.switched[cases] = True
         stepper.branch_index[cases] = stage.switch
-        # no over step planned from the bifurcation point (its branch test is ~0 there)
-        stepper.over_length[cases], stepper.degenerate_length[cases] = 0.0, 0.0
-        stepper.over_degenerate[cases], stepper.branch_size[cases] = False, np.nan
+        reset_over_steps(stepper, cases)  # none planned from the bifurcation point (its branch test is ~0 there)
         self._store_start(stepper, cases)
 
     def _store_events(

@@ -17,18 +17,15 @@ event_tol each, until ``max_steps``).  The side is the sign of the
 indicator's central difference along the new tangent, +-:data:`ENTRY_PROBE`
 in arclength; where it is below :data:`ENTRY_NOISE` (the path grazes the
 surface, or the rigid limit's frozen gap), the motion decides alone.
+
+The compiled loop implements it (the contact switch in :mod:`ncstab.paths.loop_cases`,
+the state's next contact bits in the model parts' ``next_state``); this module
+holds its constants.
 """
 
 from __future__ import annotations
 
-from typing import Any
-
-import numpy as np
-
-from ncstab.paths.rhs import Auxiliary, StateLayout, state_derivative
-from ncstab.paths.tangent_field import StageArrays
-
-__all__ = ["ENTRY_NOISE", "ENTRY_PROBE", "switch_contacts"]
+__all__ = ["ENTRY_NOISE", "ENTRY_PROBE"]
 
 #: Arclength either side of a switch at which the crossed indicator is read to
 #: see which side the new branch's tangent enters.
@@ -36,44 +33,3 @@ ENTRY_PROBE = 1e-6
 #: Differences of the crossed indicator over the probe below which its side is
 #: not told (rounding of a gap is ~1e-16; a rate of 1e-7 gives 2e-13).
 ENTRY_NOISE = 1e-13
-
-
-def switch_contacts(
-    batch: Any, stage: StageArrays, y: np.ndarray, bits: np.ndarray, columns: np.ndarray, layout: StateLayout
-) -> tuple[np.ndarray, np.ndarray]:
-    """Switch the contact-state ``bits`` (per case) where the indicator ``columns`` crossed
-    zero (in ``stage``, in place).
-
-    The batch switches its springs (or, in the pure-shear limit, its state
-    coordinates).  The switch may flip the cofactor tangent: the new branch is
-    followed into its own side, or where that side is not told, in the
-    direction of motion in (u, F, lambda) kept (see the module docstring).
-    Returns the new states and a mask of the cases whose orientation must
-    flip.  The tangents are oriented by the stage only, not by continuity
-    (``stage.reference`` is set aside).
-    """
-    from ncstab.paths.accepted_steps import indicators_at
-
-    y = y.copy()
-    reference = stage.reference
-    stage.reference = np.full(reference.shape, np.nan)
-    _, before = state_derivative(batch, stage, y, layout)
-    batch.close_contact(y, stage.secondary_state, bits, layout)
-    dy, after = state_derivative(batch, stage, y, layout)
-    rows = np.arange(y.shape[0])
-    read = []
-    for side in (1.0, -1.0):
-        probe = y + side * ENTRY_PROBE * dy
-        _, at_probe = state_derivative(batch, stage, probe, layout)
-        read.append(indicators_at(batch, stage, probe, at_probe, layout)[rows, columns])
-    stage.reference = reference
-
-    def motion(ax: Auxiliary) -> np.ndarray:
-        df = (ax.evaluation.dF_dv @ ax.dv[:, :, None])[:, :, 0]
-        return np.concatenate([ax.du, df, ax.dlam[:, None]], axis=-1)
-
-    kept = np.sum(motion(after) * motion(before), axis=-1) < 0
-    rate = read[0] - read[1]
-    own_side = np.where((stage.secondary_state & bits) > 0, -1.0, 1.0)
-    told = np.abs(rate) > ENTRY_NOISE
-    return y, np.where(told, rate * own_side < 0, kept)

@@ -1,4 +1,4 @@
-"""Event indicators along a path and their batched localisation.
+"""Event indicators along a path: their columns, and what a crossing of each means.
 
 Each event is the sign change of a scalar indicator of the state:
 
@@ -19,21 +19,30 @@ change over an accepted step is located by the Illinois variant of regula falsi
 on the step length sigma in (0, h), each evaluation re-taking the step from its
 start with length sigma (same integrator, same Newton projection), so the
 located state is as accurate as the path itself.
+
+Values within rounding of zero carry no sign (:data:`SIGN_NOISE` of the size of
+what they are built on: K = 2I, gamma = 1 at rest, has a flutter discriminant
+of +-1e-31 that must not be an event), and a case keeps, for its next
+comparison, the last value that had one: a stored state may land on an
+indicator's root (Ziegler's follower pendulum stepped by 0.01 in P meets Hill's
+condition's loss at P = 2 exactly), and the step that leaves the zero is then a
+change, located at the zero.  A contact indicator exactly at zero takes the
+sign of the branch the case is on (:data:`TINY`), so leaving the kink into the
+other side is a detected crossing.
+
+The compiled loop computes and locates them (``indicators`` in the model parts,
+the signs in :mod:`ncstab.paths.loop_signs`, ``locate`` in
+:mod:`ncstab.paths.loop_steps`); this module holds their layout, their
+constants and what a crossing of each column means (:func:`event_tables`).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
-from ncstab.operators.indicators import det_K, flutter_discriminant, hill_eigenvalue
-from ncstab.paths.programme import EVENTS
-from ncstab.paths.tangent_field import StageArrays, control_matrix
-
-if TYPE_CHECKING:
-    from ncstab.paths.model import Evaluation
+from ncstab.paths.programme import EVENTS, LoadingProgramme
 
 __all__ = [
     "BIFURCATION_COLUMN",
@@ -41,13 +50,11 @@ __all__ = [
     "DIAMOND_COLUMNS",
     "INDICATOR_EVENTS",
     "INDICATOR_GAP",
-    "IndicatorLayout",
     "STIFFNESS_COLUMNS",
     "TARGET_COLUMN",
     "TURNING_COLUMN",
-    "indicator_values",
-    "locate_sign_changes",
-    "signs_kept",
+    "IndicatorLayout",
+    "event_tables",
 ]
 
 @dataclass(frozen=True)
@@ -171,212 +178,35 @@ BIFURCATION_COLUMN = DIAMOND_COLUMNS.bifurcation
 assert set(IndicatorLayout(1, 1, True).events) - {"normal_contact", "cycle_end", "stage_target"} == set(EVENTS)
 
 
-def _signed_zero(values: np.ndarray, state: np.ndarray, bits: tuple[int, ...]) -> np.ndarray:
-    """A contact indicator exactly at zero takes the sign of the branch the case is on
-    (bit set: -TINY), so leaving the kink into the other side is a detected crossing."""
-    if values.shape[-1] == 0:
-        return values
-    closed = np.stack([state & bit for bit in bits], -1) > 0
-    return np.where(values == 0, np.where(closed, -TINY, TINY), values)
-
-
-def indicator_values(
-    evaluation: Evaluation,
-    stage: StageArrays,
-    lam: np.ndarray,
-    dlam: np.ndarray,
-    stiffness_columns: bool = True,
-    layout: IndicatorLayout = DIAMOND_COLUMNS,
-    branch: np.ndarray | None = None,
-) -> np.ndarray:
-    """All indicators at a batch of states, ``(B, layout.size)``.
-
-    Parameters
-    ----------
-    evaluation
-        Forces, K, Jacobians and gaps at the states.
-    stage
-        The cases' stage arrays.
-    lam, dlam
-        Driven parameter and its oriented rate along the path, ``(B,)``.
-    stiffness_columns
-        ``False``: leave the four indicators built on K (limit point, Hill,
-        controllability, flutter) NaN, for a caller that needs none of them
-        (event location of a gap or a target); the other columns are the same.
-    layout
-        The system's columns.
-    branch
-        The branch test of the path tangent (``PathTangent.branch``), for a
-        general layout's ``bifurcation`` column (NaN where not given).
-    """
-    stiffness = evaluation.stiffness
-    state = stage.secondary_state
-    bits = layout.switch_bits
-    # (a no_tension contact touching at rest is closed: overlap "+0").
-    overlap = evaluation.normal_overlap.reshape(lam.shape[0], layout.normal_contacts)
-    overlap = _signed_zero(overlap, state, bits[layout.normal_columns])
-    gaps = _signed_zero(evaluation.gaps, state, bits[layout.gap_columns])
-    target = (lam - stage.lam_end) * stage.target_sign
-    with np.errstate(invalid="ignore"):
-        cycle_end = np.where(stage.is_cycle, lam - 2 * np.pi * (stage.cycles_done + 1), np.nan)
-    def significant(value: np.ndarray, size: np.ndarray) -> np.ndarray:
-        # Values within rounding of zero carry no sign: K = 2I (gamma = 1 at
-        # rest) has a flutter discriminant of +-1e-31 that must not be an event.
-        return np.where(np.abs(value) <= SIGN_NOISE * size, 0.0, value)
-
-    nothing = np.full(lam.shape, np.nan)
-    dynamic = nothing
-    if stiffness_columns:
-        control = control_matrix(evaluation.du_dv, evaluation.dF_dv, stage.force_controlled)
-        with np.errstate(invalid="ignore"):
-            scale = np.nanmax(np.abs(np.concatenate([stiffness, control], axis=-1)), axis=(-2, -1))
-        scale = np.where(np.isfinite(scale) & (scale > 0), scale, 1.0)
-        control_determinant = significant(det_K(control), scale**2)
-        if layout.general and evaluation.mass is not None:
-            # M s^2 + C s + K: the onset of flutter (a pair through the imaginary
-            # axis) and divergence (a real root through 0 under the stage's control).
-            flutter = _flutter_onset(evaluation.mass, evaluation.damping, stiffness)
-            dynamic = control_determinant
-        else:
-            flutter = significant(flutter_discriminant(stiffness), scale**2)
-        stiffness_values = [
-            significant(det_K(stiffness), scale**2),
-            significant(hill_eigenvalue(stiffness), scale),
-            control_determinant,
-            flutter,
-        ]
-    else:
-        stiffness_values = [nothing] * 4
-    general = []
-    if layout.general:
-        general = [dynamic, nothing if branch is None else branch]
-    elif layout.branch_test:
-        general = [nothing if branch is None else branch]
-    return np.column_stack(
-        [
-            *stiffness_values,
-            gaps,
-            dlam,
-            overlap,
-            *general,
-            cycle_end,
-            target,
-        ]
-    )
-
-
-def _flutter_onset(mass: np.ndarray, damping: np.ndarray | None, stiffness: np.ndarray) -> np.ndarray:
-    """The flutter-onset test of M s^2 + C s + K (:func:`ncstab.operators.flutter_onset_indicator`),
-    with values within rounding of zero taken as zero (no sign)."""
-    from ncstab.operators.dynamics import flutter_onset_indicator
-
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        values = flutter_onset_indicator(mass, damping, stiffness)
-    return values
-
-
-def signs_kept(before: np.ndarray, after: np.ndarray, target: int) -> np.ndarray:
-    """The indicators a case keeps for its next sign comparison: ``after``, except
-    that a value without a sign (exactly 0: within rounding of zero, see
-    :func:`indicator_values`) keeps the value before it, the last that had one.
-
-    A stored state may land on an indicator's root (Ziegler's follower pendulum
-    stepped by 0.01 in P meets Hill's condition's loss at P = 2 exactly): the
-    signs along the path are then +, 0, -, and neither comparison of
-    neighbours is a change.  With the last sign kept, the step that leaves the
-    zero is one (+ before, - after), and its crossing is located at the zero,
-    the step's start.  An indicator that returns to its sign after zeros
-    (a double root touched) changes nothing.  The stage target's column
-    (``target``) is compared as it is (reached at 0).
-
-    Parameters
-    ----------
-    before, after
-        ``(B, columns)``: the values kept at the step's start, and the values at its end.
-    target
-        Column of the stage target.
-    """
-    unsigned = after == 0
-    unsigned[:, target] = False
-    return np.where(unsigned, before, after)
-
-
-def locate_sign_changes(
-    evaluate: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]],
-    h: np.ndarray,
-    phi0: np.ndarray,
-    phi1: np.ndarray,
-    tol: float,
-    max_iter: int = 200,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Locate roots of phi(sigma) on (0, h) for a batch, by Illinois regula falsi.
-
-    Parameters
-    ----------
-    evaluate
-        ``(index, sigma) -> (phi, payload)``: re-takes the step of cases
-        ``index`` with lengths ``sigma`` and returns the indicator and the
-        state there (``payload``, shape ``(len(index), ...)``).
-    h
-        Step lengths with ``phi0 * phi1 < 0``, ``(B,)``.
-    phi0, phi1
-        Indicator at sigma = 0 and sigma = h.
-    tol
-        Stop when the bracket is narrower than ``tol`` (or phi is exactly 0, or
-        +-TINY, the indicators' signed zero).
+def event_tables(
+    programme: LoadingProgramme, secondary_contacts: str, columns: IndicatorLayout
+) -> tuple[dict[str, list[int]], np.ndarray, np.ndarray]:
+    """What a sign change of each indicator column means for the path.
 
     Returns
     -------
-    (sigma, lower, upper, phi, payload)
-        Root estimate, final bracket, indicator and payload at the root estimate.
+    event_column
+        Per event name, its indicator columns.
+    stop_table
+        ``(stages, columns)`` bool: a crossing of the column stops the case in
+        that stage (the stage's ``stop_at``; every secondary contact with
+        ``secondary_contacts = "stop"``).
+    break_columns
+        ``(columns,)`` bool: a crossing switches the contact state, so the step
+        is cut there (secondary contacts with ``"activate"``; the normal
+        contact of a no_tension law, whose opening and closing switch smooth
+        branch, seed Eq. 59).
     """
-    size = h.shape[0]
-    lower = np.zeros(size)
-    upper = h.astype(float).copy()
-    f_lower = phi0.astype(float).copy()
-    f_upper = phi1.astype(float).copy()
-    side = np.zeros(size, dtype=int)
-    sigma = np.full(size, np.nan)
-    phi = np.full(size, np.nan)
-    payload = None
-    done = np.zeros(size, dtype=bool)
-    last_width = upper - lower
-    for iteration in range(max_iter):
-        width = upper - lower
-        with np.errstate(divide="ignore", invalid="ignore"):
-            candidate = (lower * f_upper - upper * f_lower) / (f_upper - f_lower)
-        bisect = ~np.isfinite(candidate) | (candidate <= lower) | (candidate >= upper)
-        if iteration % 5 == 4:  # safeguard: bisect where the bracket stalls
-            bisect |= width > 0.5 * last_width
-            last_width = width.copy()
-        candidate = np.where(bisect, 0.5 * (lower + upper), candidate)
-        active = np.flatnonzero(~done)
-        values, state = evaluate(active, candidate[active])
-        if payload is None:
-            payload = np.full((size,) + state.shape[1:], np.nan)
-        payload[active] = state
-        sigma[active] = candidate[active]
-        phi[active] = values
-        f_c = np.full(size, np.nan)
-        f_c[active] = values
-        a_side = active[np.sign(values) == np.sign(f_lower[active])]
-        b_side = active[np.sign(values) == np.sign(f_upper[active])]
-        # TINY is the indicators' exact zero (signed by the branch): a root hit
-        # exactly.  Taking it as one end of the bracket instead would stall
-        # regula falsi there and leave ~15 bisections to close the bracket.
-        exact = active[(np.abs(values) <= TINY) | ~np.isfinite(values)]
-        # Illinois: halve the retained end's value when the same side moves twice.
-        halve_upper = a_side[side[a_side] == 1]
-        f_upper[halve_upper] *= 0.5
-        lower[a_side], f_lower[a_side], side[a_side] = candidate[a_side], f_c[a_side], 1
-        halve_lower = b_side[side[b_side] == -1]
-        f_lower[halve_lower] *= 0.5
-        upper[b_side], f_upper[b_side], side[b_side] = candidate[b_side], f_c[b_side], -1
-        lower[exact] = upper[exact] = candidate[exact]
-        width = upper - lower
-        done[active] |= width[active] <= tol
-        done[exact] = True
-        if done.all():
-            break
-    assert payload is not None
-    return sigma, lower, upper, phi, payload
+    names = columns.events
+    event_column = {name: [i for i, e in enumerate(names) if e == name] for name in EVENTS}
+    stop_table = np.zeros((len(programme), len(names)), dtype=bool)
+    for k, stage in enumerate(programme.stages):
+        for name in stage.stop_at:
+            stop_table[k, event_column[name]] = True
+        if secondary_contacts == "stop":
+            stop_table[k, event_column["secondary_contact"]] = True
+    break_columns = np.zeros(len(names), dtype=bool)
+    if secondary_contacts == "activate":
+        break_columns[event_column["secondary_contact"]] = True
+    break_columns[[i for i, e in enumerate(names) if e == "normal_contact"]] = True
+    return event_column, stop_table, break_columns

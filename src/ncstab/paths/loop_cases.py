@@ -45,14 +45,14 @@ def cases_part(
         other; see :class:`Outcome`.  ``control_rows``: each case's control path (see
         ``control``); a turn of a cycle stage that closes sets ``turn_closed[i, first_turn
         + turn]`` and stores (W, F1, F2, T) there in ``turn_values`` for the stepper's
-        tables (cut_points.close_turns).  A case with ``switch_pending`` (its stage switches
+        tables (:class:`~ncstab.paths.cycle_turns.CycleTurns`).  A case with ``switch_pending`` (its stage switches
         branch at a simple bifurcation point, not done yet) cuts its step where the
         bifurcation column changes sign and returns there, unstored, for the stepper to
-        leave along the bifurcating branch (cut_points.switch_branches_at).
+        leave along the bifurcating branch (:mod:`ncstab.paths.branch_switching`).
 
-        Mirrors one case's passes of stepper.BatchStepper: a DOP853 step (projected),
-        the step-size control, the domain check, crossings located, the cut, the
-        first events, the commit and the end of the stage.  A case reads and
+        Per step: a DOP853 step (projected), the step-size control, the domain
+        check, the step in pieces of ``sample_step``, crossings located, the cut,
+        the first events, the commit and the end of the stage.  A case reads and
         writes its own rows only, so cases may run on any thread in any order
         (the loop releases the GIL: :mod:`ncstab.paths.compiled_stages` runs
         shares of the cases on Python threads side by side).
@@ -78,7 +78,7 @@ def cases_part(
         ev_new = np.empty(ev.size)
         aux_new = np.empty(aux.size)
         orient = np.empty(1 + n_motion)  # the orientation, then the reference (the motion at the step's start)
-        plain = np.full(1 + n_motion, np.nan)  # the orientation alone (contacts.switch_contacts sets the reference aside)
+        plain = np.full(1 + n_motion, np.nan)  # the orientation alone (a contact switch sets the reference aside)
         values = np.empty(n_columns)
         after = np.empty(n_columns)
         before = np.empty(n_columns)
@@ -112,7 +112,7 @@ def cases_part(
                 for j in range(M):
                     y0[j] = y[i, j]
                 over = False
-                if not rate_form and over_length[i] > 0:  # over_steps.take_over_steps
+                if not rate_form and over_length[i] > 0:  # an over step (over_steps)
                     arc = over_step(over_length[i], y0, derivative[i], fc, ctl, orient, law, p, geo,
                                     newton_tol, newton_max_iter, y_raw, y_new, dy_new, ev_new, aux_new, y_half, ev,
                                     coefficients, over_degenerate[i], degenerate_length[i] > 0)
@@ -140,7 +140,7 @@ def cases_part(
                     if err == 0:
                         factor = 10.0
                     elif np.isfinite(err):
-                        factor = min(max(0.9 / np.sqrt(np.sqrt(np.sqrt(err))), 0.2), 10.0)  # integrator.step_factor
+                        factor = min(max(0.9 / np.sqrt(np.sqrt(np.sqrt(err))), 0.2), 10.0)  # scipy's DOP853 step factor: 0.9 err^(-1/8) in [0.2, 10]
                     else:
                         factor = 0.25
                     if not accept:
@@ -198,7 +198,7 @@ def cases_part(
                             ev_end[j] = ev_new[j]
                         for j in range(aux_new.size):
                             aux_end[j] = aux_new[j]
-                    reason = domain_detail(y_end, ev_end, geo)  # --- domain_edge.split_at_the_edge: bisection
+                    reason = domain_detail(y_end, ev_end, geo)  # --- the domain's edge (domain_edge): bisection
                     if reason >= 0:
                         if not have_dense:
                             dense_coefficients(y0, y_raw, h, fc, ctl, orient, law, p, geo, stages,
@@ -213,7 +213,7 @@ def cases_part(
                                       newton_max_iter, y_end, dy_end, ev_end, aux_end)
                         end_at = lo
                     span = end_at - offset
-                    # --- _complete: indicators, crossings located, cut, events, commit
+                    # --- the piece's end: indicators, crossings located, cut, events, commit
                     indicators(ev_end, aux_end, y_end, fc, ctl, geo, lam_end[i], target_sign[i], turn_end, sec, after)
                     any_change = False
                     for c in range(n_columns):
@@ -248,7 +248,7 @@ def cases_part(
                             sigma[target_column] = lower[target_column] = upper[target_column] = span
                             for j in range(M):
                                 located_states[target_column, j] = y_end[j]
-                    # cut_points.cut_points: the target, the end of a turn, stop events, contact switches
+                    # where the piece is cut: the target, the end of a turn, stop events, contact switches
                     cut_column = 0
                     cut_sigma = np.inf
                     for c in range(n_columns):
@@ -267,13 +267,13 @@ def cases_part(
                             event_found[e, i], event_stage[e, i] = True, stage_number
                             store_event(event_values[e, i], arclength[i], sigma[c], lower[c], upper[c], located_states[c],
                                         ev, geo)
-                    if is_cut:  # cut_points.move_to_cut_points
+                    if is_cut:  # move to the cut point
                         for j in range(M):
                             y_end[j] = located_states[cut_column, j]
                         switching = break_row[cut_column]
                         switched = switching
                         kept = 0.0
-                        if switching:  # cut_points.switch_contacts_at (contacts.switch_contacts)
+                        if switching:  # a contact switch (contacts)
                             plain[0] = orient[0]
                             rhs(y_end, fc, ctl, plain, law, p, geo, work[2], ev, aux)
                             motion(ev, aux, motion_before)
@@ -303,7 +303,7 @@ def cases_part(
                             kept = after[cut_column]
                         rhs(y_end, fc, ctl, orient, law, p, geo, dy_end, ev_end, aux_end)
                         closes_turn = cut_column == cycle_column or cut_column == target_column
-                        if ctl[0] > 0 and closes_turn and done < turns:  # cut_points.close_turns: W, F, T where it closes
+                        if ctl[0] > 0 and closes_turn and done < turns:  # a turn closes: W, F, T there
                             slot = first_turn + done
                             turn_closed[i, slot] = True
                             turn_record(y_end, ev_end, turn_values[i, slot], geo)
@@ -312,13 +312,13 @@ def cases_part(
                             turn_end = 2 * np.pi * (done + 1)
                         indicators(ev_end, aux_end, y_end, fc, ctl, geo, lam_end[i], target_sign[i], turn_end, sec,
                                    after)
-                        for c in range(n_columns):  # cut_points.move_to_cut_points: a simultaneous crossing
+                        for c in range(n_columns):  # a crossing at the cut point itself
                             if c != cut_column and break_row[c] and sign(after[c]) * sign(before[c]) < 0:
                                 after[c] = before[c]  # is seen in the next piece, and switched there
                         if switching:  # the post-crossing sign, so the crossing is not found twice
                             after[cut_column] = kept
-                    # _commit (a case leaving for a bifurcating branch keeps dy/ds of the step's end:
-                    # at the point itself the tangent is undetermined; cut_points.switch_branches_at)
+                    # commit (a case leaving for a bifurcating branch keeps dy/ds of the step's end:
+                    # at the point itself the tangent is undetermined; branch_switching)
                     stop_hit = is_cut and cut_column != target_column and stop_row[cut_column]
                     leaving = is_cut and not stop_hit and switch_pending[i] and cut_column == bifurcation_column
                     for j in range(M):
@@ -327,17 +327,17 @@ def cases_part(
                     arclength[i] += reach
                     if piece == 1:
                         accepted[i] += 1
-                    size = branch_size(aux_end, orient)  # stepper._commit: the next over step
-                    if not rate_form:  # over_steps.plan_over_steps
+                    size = branch_size(aux_end, orient)  # the next over step
+                    if not rate_form:  # plan it (over_steps)
                         over_length[i] = next_over_length(branch_sizes[i], size, reach, newton_tol)
                         if tries_degenerate(geo):
                             degenerate = next_degenerate_length(branch_sizes[i], size, reach)
                             degenerate_length[i] = degenerate if over_length[i] > 0 else 0.0
                     branch_sizes[i] = size
-                    set_reference(aux_end, orient)  # stepper._commit: the motion at the next piece's start
+                    set_reference(aux_end, orient)  # the motion at the next piece's start
                     for k in range(n_motion):
                         reference[i, k] = orient[1 + k]
-                    for c in range(n_columns):  # events.signs_kept: a value without a sign keeps the last
+                    for c in range(n_columns):  # a value without a sign keeps the last (events)
                         if after[c] != 0 or c == target_column:
                             indicator_table[i, c] = after[c]
                     if leaving:  # the stepper leaves along the bifurcating branch, and stores that state
@@ -346,7 +346,7 @@ def cases_part(
                         break
                     store_record(recorded, i, record_count[i], arclength[i], stage_number, y_end, ev_end, aux_end, geo)
                     record_count[i] += 1
-                    # _end_stages
+                    # the end of the stage: its target, a stop event, max_steps, a singular branch
                     at_target = cut_column == target_column or after[target_column] >= 0
                     target_hit = is_cut and not stop_hit and at_target
                     if stop_hit:
@@ -358,7 +358,7 @@ def cases_part(
                         code[i] = Outcome_MAX_STEPS
                         ended = True
                         break
-                    if switched and after[control_column] == 0:  # stepper._complete: onto a singular branch
+                    if switched and after[control_column] == 0:  # onto a singular branch: failed
                         code[i] = Outcome_SINGULAR_BRANCH
                         ended = True
                         break

@@ -26,7 +26,9 @@ from ncstab.paths.events import (
 __all__ = ["access_part"]
 
 
-def access_part(M, N_INT, angle, control, evaluate, gap, hot, njit, signed_gap, state_slot, tangent, target_indicator) -> None:
+def access_part(
+    M, N_INT, angle, control, evaluate, gap, hot, njit, richardson_arc, signed_gap, state_slot, tangent, target_indicator,
+) -> None:
     """Define the model's answers to the shared parts (a template: see the module docstring)."""
     n_columns, target_column, turning_column, cycle_column = _N_COLUMNS, TARGET_COLUMN, TURNING_COLUMN, CYCLE_COLUMN
     bifurcation_column, limit_column = BIFURCATION_COLUMN, INDICATOR_EVENTS.index("limit_point")
@@ -89,7 +91,7 @@ def access_part(M, N_INT, angle, control, evaluate, gap, hot, njit, signed_gap, 
 
     @hot
     def next_state(geo, secondary, bit, y):
-        # contacts.switch_contacts: the contact state after a switch of ``bit`` (model.close_contact)
+        # the contact state after a switch of ``bit`` (contacts): its bit toggles
         return secondary ^ bit
 
     @hot
@@ -120,7 +122,7 @@ def access_part(M, N_INT, angle, control, evaluate, gap, hot, njit, signed_gap, 
 
     @hot
     def tries_degenerate(geo):
-        # over_steps.plan_over_steps: degenerate over steps from three dofs on (not the diamond)
+        # degenerate over steps from three dofs on (not the diamond; over_steps)
         return False
 
     @hot
@@ -129,7 +131,7 @@ def access_part(M, N_INT, angle, control, evaluate, gap, hot, njit, signed_gap, 
 
     @njit
     def set_reference(aux, orient):
-        # stepper._commit: the reference of the next piece, the motion (du, dF, dlambda)
+        # the reference of the next piece, the motion (du, dF, dlambda)
         orient[1], orient[2], orient[3], orient[4], orient[5] = aux[2], aux[3], aux[6], aux[7], aux[4]
 
     @njit
@@ -156,7 +158,7 @@ def access_part(M, N_INT, angle, control, evaluate, gap, hot, njit, signed_gap, 
 
     @njit
     def project(y, fc, ctl, law, p, geo, newton_tol, newton_max_iter, ev):
-        # projection.project + _correction_2, one case; ev left at the final state
+        # the Newton projection onto equilibrium (projection), one case; ev left at the final state
         fc0, fc1 = fc[0], fc[1]
         for _ in range(newton_max_iter + 1):
             evaluate(y, ctl, law, p, geo, ev)
@@ -204,7 +206,7 @@ def access_part(M, N_INT, angle, control, evaluate, gap, hot, njit, signed_gap, 
 
     @njit
     def domain_detail(state, ev_state, geo):
-        # domain_edge.domain_codes, one state: -1 inside the domain, else the index of the reason
+        # the domain (domain_edge), one state: -1 inside the domain, else the index of the reason
         # in model.DOMAIN_REASONS (0 non-finite numbers, 1 l* <= 0, 2 |alpha| >= pi/2)
         finite = np.isfinite(ev_state[4]) and np.isfinite(ev_state[5])
         for j in range(M):
@@ -219,7 +221,7 @@ def access_part(M, N_INT, angle, control, evaluate, gap, hot, njit, signed_gap, 
 
     @njit
     def arc_through(y0, y_half, y_new, ev_new, ctl, law, p, geo, ev):
-        # over_steps.arc_length: the arc through the start y0, the middle y_half (evaluated in
+        # the arc (over_steps: exact to O(kappa^4 L^5)) through the start y0, the middle y_half (evaluated in
         # ev on entry) and the end y_new (ev_new), in (u, F, lambda); ev left at the start
         h0, h1 = ev[4], ev[5]  # F at the middle, then at the start
         evaluate(y0, ctl, law, p, geo, ev)
@@ -229,11 +231,11 @@ def access_part(M, N_INT, angle, control, evaluate, gap, hot, njit, signed_gap, 
         whole = np.sqrt(c0 * c0 + c1 * c1 + c2 * c2 + c3 * c3 + c4 * c4)
         halves = np.sqrt(a0 * a0 + a1 * a1 + a2 * a2 + a3 * a3 + a4 * a4)
         halves += np.sqrt(b0 * b0 + b1 * b1 + b2 * b2 + b3 * b3 + b4 * b4)
-        return (4.0 * halves - whole) / 3.0
+        return richardson_arc(whole, halves)
 
     @njit
     def turn_record(y, ev, row, geo):
-        # cut_points.close_turns: W, F1, F2 and T where a turn closes
+        # W, F1, F2 and T where a turn closes (the cycle tables)
         row[0] = y[M - 1]
         row[1] = ev[4]
         row[2] = ev[5]
@@ -241,7 +243,7 @@ def access_part(M, N_INT, angle, control, evaluate, gap, hot, njit, signed_gap, 
 
     @njit
     def store_record(recorded, i, position, arclength, stage_number, y, ev, aux, geo):
-        # stepper.BatchStepper.record, straight into the recorder's padded arrays
+        # a stored state, straight into the recorder's padded arrays
         # (``recorded``: one array per field, in the order of BatchStepper.record_fields())
         (r_s, r_stage, r_u, r_lam, r_internal, r_work, r_f, r_l, r_alpha, r_n, r_t, r_k, r_du,
          r_dlam) = recorded
@@ -269,7 +271,7 @@ def access_part(M, N_INT, angle, control, evaluate, gap, hot, njit, signed_gap, 
 
     @njit
     def store_event(row, arclength, sigma, lower, upper, y, ev, geo):
-        # crossings.store_first_events, one event of one case
+        # the first occurrence of an event, one case
         row[0] = arclength + sigma
         row[1] = arclength + lower
         row[2] = arclength + upper

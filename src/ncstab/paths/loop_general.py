@@ -13,11 +13,12 @@ and the model is its compiled kernel's C callback (``law``,
 :class:`~ncstab.operators.model_kernel_source.KernelLayout` (F, K, dF/dP,
 d(internal)/du, gaps, overlaps, the domain code, the interactions).
 
-The cofactor tangent and the Newton correction are those of the numpy
-stepper for n > 2 dofs, one implementation: :func:`ncstab.paths.cofactor.cofactor_vector`
+The cofactor tangent and the Newton correction for n > 2 dofs are those of
+the batched numpy tangent and projection (stage entry, branch switching), one
+implementation: :func:`ncstab.paths.cofactor.cofactor_vector`
 and :func:`~ncstab.paths.cofactor.minimum_norm_step`, pasted into the module
 (tangent_field.path_tangent, projection.project; seed Eq. 30-34).  The
-indicators are events.indicator_values of a general layout (part 1b).
+indicators are those of a general layout (:mod:`ncstab.paths.events`, part 1b).
 """
 
 from __future__ import annotations
@@ -146,7 +147,7 @@ def general_part(
 
     @njit
     def tries_degenerate(geo):
-        # over_steps.plan_over_steps: degenerate over steps from three dofs on
+        # degenerate over steps from three dofs on (over_steps)
         return geo[G_N] >= 3
 
     @hot
@@ -198,9 +199,9 @@ def general_part(
 
     @njit
     def tangent_at(y, fc, ctl, orient, ev, aux, geo):
-        # tangent_field.path_tangent (n > 2) at an evaluated state: (adj(M) g', det M)
+        # the path tangent (tangent_field, n > 2) at an evaluated state: (adj(M) g', det M)
         # normalised in (du, dF, dlambda), times the orientation, flipped where it reverses
-        # the reference (_continue_reference); aux as above
+        # the reference (orientation by continuity); aux as above
         n = geo[G_N]
         matrix, rate, c, work = control_system(fc, ctl, y[geo[G_N]], ev, geo)
         cofactor_vector(matrix, rate, c, work)
@@ -257,7 +258,7 @@ def general_part(
 
     @njit
     def alignment(aux, orient):
-        # over_steps / _continue_reference: the cosine of the motion (du, dF, dlambda) in aux
+        # the cosine of the motion (du, dF, dlambda) in aux
         # with the reference orient[1:] (sum(motion * reference) / sqrt(sum(reference**2)))
         n = (aux.size - 5) // 3
         dot, square = 0.0, 0.0
@@ -269,19 +270,19 @@ def general_part(
 
     @njit
     def branch_size(aux, orient):
-        # stepper._commit: |PathTangent.branch|
+        # |the branch test| (tangent_field)
         return abs(aux[aux.size - 1])
 
     @njit
     def set_reference(aux, orient):
-        # stepper._commit: the reference of the next piece, the motion (du, dF, dlambda)
+        # the reference of the next piece, the motion (du, dF, dlambda)
         n = (aux.size - 5) // 3
         for k in range(2 * n + 1):
             orient[1 + k] = aux[n + k]
 
     @njit
     def motion(ev, aux, out):
-        # contacts.switch_contacts.motion: (du, dF, dlambda) of the tangent in aux
+        # the motion (du, dF, dlambda) of the tangent in aux
         n = (aux.size - 5) // 3
         for k in range(2 * n + 1):
             out[k] = aux[n + k]
@@ -296,7 +297,7 @@ def general_part(
         return total
 
     def rhs_py(y, fc, ctl, orient, law, p, geo, dy, ev, aux):
-        # rhs.state_derivative: dy/ds = (dv, dlambda, dinternal, dW), dW = work_factor
+        # dy/ds (rhs) = (dv, dlambda, dinternal, dW), dW = work_factor
         # (F + P Q_ext) . du
         n, n_internal = geo[G_N], geo[G_NINT]
         evaluate(y, ctl, law, p, geo, ev)
@@ -327,7 +328,7 @@ def general_part(
 
     @njit
     def project(y, fc, ctl, law, p, geo, newton_tol, newton_max_iter, ev):
-        # projection.project with minimum_norm_correction (n > 2), one case; ev left at
+        # the Newton projection (projection, minimum-norm corrections, n > 2), one case; ev left at
         # the final state
         n, forces = geo[G_N], geo[G_FORCES]
         residual = np.empty(n)

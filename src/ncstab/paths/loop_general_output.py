@@ -2,7 +2,7 @@
 
 Pasted after :func:`ncstab.paths.loop_general.general_part` (see that module):
 u and du where the state coordinates are not u, the contact state after a switch
-(with the pure-shear limit's blocking), the event indicators (events.indicator_values of a general layout: det K, the
+(with the pure-shear limit's blocking), the event indicators (:mod:`ncstab.paths.events`, a general layout: det K, the
 least eigenvalue of K_sym, det M of the control, the flutter column without or
 with inertia, the gaps and overlaps signed by the contact state, dlambda, the
 divergence and branch tests, the end of a turn and the stage target), the
@@ -22,13 +22,13 @@ def general_output_part(
     G_BIFURCATION, G_BLOCKING, G_COLUMNS, G_COORD, G_CYCLE, G_DAMPING, G_DIVERGENCE, G_DOMAIN, G_FORCES, G_GAPCOL, G_GAPS, G_INTERACTIONS, G_MASS,
     G_N, G_NGAPS, G_NINT, G_NOPEN, G_NORMALCOL, G_OVERLAPS, G_SIZE, G_STIFFNESS, G_T, G_TARGET, G_TCOUNT,
     G_TSTRIDE, G_TURNING, control_system, damped_onset, displacement, eigenvalue_discriminant, evaluate,
-    frequency_discriminant, njit, signed_gap, significant, target_indicator,
+    frequency_discriminant, njit, richardson_arc, signed_gap, significant, target_indicator,
 ) -> None:
     """Define the general model's indicators, domain check and storage (a template: see the module docstring)."""
 
     @njit
     def stiffness_indicators(ev, fc, ctl, lam, geo, out):
-        # events.indicator_values, the four columns built on K (operators.indicators: det K,
+        # the event indicators (events), the four columns built on K (operators.indicators: det K,
         # the least eigenvalue of K_sym, det M, the discriminant of K's characteristic
         # polynomial; NaN where K is not finite), values within rounding of zero unsigned
         n, at = geo[G_N], geo[G_STIFFNESS]
@@ -89,7 +89,7 @@ def general_output_part(
 
     @njit
     def indicators(ev, aux, y, fc, ctl, geo, lam_end, target_sign, turn_end, secondary, out):
-        # events.indicator_values for a general layout without inertia; turn_end: 2 pi
+        # the event indicators (events) of a general layout without inertia; turn_end: 2 pi
         # (turns done + 1) in a cycle stage, else NaN
         n, lam = geo[G_N], y[geo[G_N]]
         for c in range(geo[G_COLUMNS]):  # (a layout's column the model has no value for: NaN)
@@ -116,7 +116,7 @@ def general_output_part(
 
     @njit
     def domain_detail(state, ev_state, geo):
-        # domain_edge.domain_codes, one state: -1 inside the domain, else the index of the
+        # the domain (domain_edge), one state: -1 inside the domain, else the index of the
         # reason in ModelBatch.domain_reasons (0 non-finite numbers; the kernel's code)
         finite = True
         for j in range(state.size):
@@ -147,8 +147,8 @@ def general_output_part(
 
     @njit
     def next_state(geo, secondary, bit, y):
-        # contacts.switch_contacts: the contact state after a switch of ``bit`` (the batch's
-        # close_contact).  Its bit toggles; in the pure-shear limit (rigid_model.close_contact)
+        # the contact state after a switch of ``bit`` (contacts).
+        # Its bit toggles; in the pure-shear limit
         # a closing gap blocks the free chain -- the state becomes that gap, alpha is frozen
         # (the last internal variable) and v = (alpha, Nhat) becomes (Nhat, Rhat = 0) -- and
         # a blocked chain stays as it is
@@ -164,7 +164,7 @@ def general_output_part(
 
     @njit
     def arc_through(y0, y_half, y_new, ev_new, ctl, law, p, geo, ev):
-        # over_steps.arc_length: the arc through the start y0, the middle y_half (evaluated in
+        # the arc (over_steps: exact to O(kappa^4 L^5)) through the start y0, the middle y_half (evaluated in
         # ev on entry) and the end y_new (ev_new), in (u, F, lambda); ev left at the start
         n, forces = geo[G_N], geo[G_FORCES]
         middle = np.empty(2 * n)  # F, then u, at the middle
@@ -185,11 +185,11 @@ def general_output_part(
         whole += (y_new[n] - y0[n]) ** 2
         first += (y_half[n] - y0[n]) ** 2
         second += (y_new[n] - y_half[n]) ** 2
-        return (4.0 * (np.sqrt(first) + np.sqrt(second)) - np.sqrt(whole)) / 3.0
+        return richardson_arc(np.sqrt(whole), np.sqrt(first) + np.sqrt(second))
 
     @njit
     def turn_record(y, ev, row, geo):
-        # cut_points.close_turns: W, F and T (the first contact family's, per member) where a
+        # W, F and T (the first contact family's, per member) where a
         # turn closes
         n = geo[G_N]
         row[0] = y[y.size - 1]
@@ -200,7 +200,7 @@ def general_output_part(
 
     @njit
     def store_record(recorded, i, position, arclength, stage_number, y, ev, aux, geo):
-        # stepper.BatchStepper.record, into the recorder's padded arrays: (s, stage, u, lam,
+        # a stored state, into the recorder's padded arrays: (s, stage, u, lam,
         # internal, work, F, K, du, dlam) and the interactions' block of the kernel's row
         # (``recorded``, :meth:`ncstab.paths.compiled_stages.CompiledStages.recorded`)
         r_s, r_stage, r_u, r_lam, r_internal, r_work, r_f, r_k, r_du, r_dlam, r_interactions = recorded
@@ -224,7 +224,7 @@ def general_output_part(
 
     @njit
     def store_event(row, arclength, sigma, lower, upper, y, ev, geo):
-        # crossings.store_first_events, one event of one case: s, its bracket, lambda, the
+        # the first occurrence of an event, one case: s, its bracket, lambda, the
         # load parameter, u, F, K, then the interactions' block of the kernel's row
         n = geo[G_N]
         row[0] = arclength + sigma

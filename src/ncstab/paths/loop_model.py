@@ -91,7 +91,7 @@ def model_part(rate_form: bool, signed_gap: Any, significant: Any, target_indica
 
     @hot
     def tangent(ev, fc0, fc1, g0, g1, orient, aux):
-        # tangent_field._path_tangent_2 with du/dv = I, dF/dv = K, then _continue_reference:
+        # the path tangent (tangent_field, n = 2) with du/dv = I, dF/dv = K, oriented by continuity:
         # orient = (the stage's orientation, the reference: the motion (du, dF, dlambda) at
         # the start of the step, NaN for none); aux = (dv0, dv1, du0, du1, dlam, det_m, dF0,
         # dF1, |c| the cofactor vector's size, 1.0 where flipped, the branch test), the tangent
@@ -113,12 +113,12 @@ def model_part(rate_form: bool, signed_gap: Any, significant: Any, target_indica
         # same number (one rounding), one operation shorter on the critical path
         scale = orient[0] / norm if norm > 0 else np.nan
         m0, m1, m2, m3, m4 = du0 * scale, du1 * scale, df0 * scale, df1 * scale, det_m * scale
-        # tangent_field._continue_reference: flipped where the sum over the five, in order,
+        # orientation by continuity: flipped where the sum over the five, in order,
         # over the reference's norm is negative: where the sum is, the reference being
         # finite (a unit motion) and not zero; NaN (no reference) flips nothing
         dot = m0 * orient[1] + m1 * orient[2] + m2 * orient[3] + m3 * orient[4] + m4 * orient[5]
         aux[8] = norm
-        # PathTangent.branch (_continue_reference): the cosine with the reference (1 without
+        # the branch test (tangent_field): the cosine with the reference (1 without
         # one) times |c|; it changes sign where c passes through zero (events: bifurcation)
         square = orient[1] * orient[1] + orient[2] * orient[2] + orient[3] * orient[3]
         product = dot / np.sqrt(square + orient[4] * orient[4] + orient[5] * orient[5])
@@ -152,7 +152,7 @@ def model_part(rate_form: bool, signed_gap: Any, significant: Any, target_indica
         return ctl[1] + ctl[3] * lam, ctl[2] + ctl[4] * lam, ctl[3], ctl[4]
 
     def rhs_py(y, fc, ctl, orient, law, p, geo, dy, ev, aux):
-        # rhs.state_derivative: dy/ds = (dv, dlambda, dinternal, dW)
+        # dy/ds (rhs) = (dv, dlambda, dinternal, dW)
         evaluate(y, ctl, law, p, geo, ev)
         _, _, g0, g1 = control(y[2], ctl)
         tangent(ev, fc[0], fc[1], g0, g1, orient, aux)
@@ -179,14 +179,14 @@ def model_part(rate_form: bool, signed_gap: Any, significant: Any, target_indica
 
     @njit
     def branch_size(aux, orient):
-        # |PathTangent.branch| (tangent_field._continue_reference): |the cosine| times |c|, or
+        # |the branch test| (tangent_field): |the cosine| times |c|, or
         # |c| where there is no reference; the next over step's length reads it (over_steps)
         product = alignment(aux, orient)
         return abs(product if np.isfinite(product) else 1.0) * aux[8]
 
     @njit
     def motion(ev, aux, out):
-        # contacts.switch_contacts.motion: (du, dF = K dv, dlambda) of the tangent in aux
+        # the motion (du, dF = K dv, dlambda) of the tangent in aux
         out[0] = aux[2]
         out[1] = aux[3]
         out[2] = ev[6] * aux[0] + ev[7] * aux[1]
@@ -205,7 +205,7 @@ def model_part(rate_form: bool, signed_gap: Any, significant: Any, target_indica
 
     @njit
     def indicators(ev, aux, y, fc, ctl, geo, lam_end, target_sign, turn_end, secondary, out):
-        # events.indicator_values; turn_end: 2 pi (turns done + 1) in a cycle stage, else NaN
+        # the event indicators (events); turn_end: 2 pi (turns done + 1) in a cycle stage, else NaN
         lam, fc0, fc1 = y[2], fc[0], fc[1]
         k00, k01, k10, k11 = ev[6], ev[7], ev[8], ev[9]
         m00 = k00 if fc0 else 1.0

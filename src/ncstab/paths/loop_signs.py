@@ -3,7 +3,7 @@
 Pasted first into every stage loop (the diamond's and the general models',
 :mod:`ncstab.paths.compiled_source`): values within rounding of zero carry no
 sign, a contact indicator exactly at zero takes the sign of its contact's state,
-and the stage target's indicator (events.indicator_values).  The function
+and the stage target's indicator (:mod:`ncstab.paths.events`).  The function
 itself is never called.
 """
 
@@ -23,13 +23,13 @@ def signs_part() -> None:
 
     @njit_signs
     def significant(value, size):
-        # events.indicator_values.significant: within rounding of zero (SIGN_NOISE of the
+        # within rounding of zero (SIGN_NOISE of the
         # size of what it is built on), no sign
         return 0.0 if abs(value) <= sign_noise * size else value
 
     @njit_signs
     def signed_gap(value, secondary, bit):
-        # events._signed_zero: a contact indicator exactly at zero takes the sign of its
+        # a contact indicator exactly at zero takes the sign of its
         # contact's state (bit set: closed, -TINY)
         if value == 0:
             return -tiny if (secondary & bit) > 0 else tiny
@@ -37,5 +37,5 @@ def signs_part() -> None:
 
     @njit_signs
     def target_indicator(lam, lam_end, target_sign):
-        # events.indicator_values: the stage target, (lambda - lambda_end) sign
+        # the stage target, (lambda - lambda_end) sign
         return (lam - lam_end) * target_sign

@@ -3,7 +3,7 @@
 Pasted before :mod:`ncstab.paths.loop_cases` (see :mod:`ncstab.paths.loop_model`):
 ``start`` computes dy/ds and the indicators at each case's (set up) state,
 stores it, and estimates the first step where it is still to be estimated
-(stage_entry._start_stage, stage_entry._estimate_first_steps).  The parameters of
+(called by :func:`ncstab.paths.stage_entry.enter`).  The parameters of
 :func:`start_part` are the names it uses from the parts before it (it is never
 called).
 """
@@ -27,7 +27,7 @@ def start_part(
               stage_number, recorded, record_count, step_size, probe, rtol, atol):
         """Cases ``cases`` start their (set up) stage: dy/ds, indicators, state stored
         (stage_entry._start_stage); the first step where ``step_size`` is NaN
-        (stage_entry._estimate_first_steps)."""
+        (Hairer's estimate from a probe step, stage_entry.probe_step)."""
         if cases.size == 0:
             return
         first = geometry[cases[0]]

@@ -61,14 +61,14 @@ def limits_part(
 
     @njit
     def next_over_length(size_before, size_after, reach, newton_tol):
-        # over_steps.next_over_steps, one case: the length of the over step tried next (0: none)
+        # the length of the over step tried next (0: none)
         ahead = reach * size_after / (size_before - size_after)
         tried = size_before > size_after > 0 and reach > 0
         return 2.0 * ahead if tried and ahead <= over_margin * np.sqrt(newton_tol) else 0.0
 
     @njit
     def next_degenerate_length(size_before, size_after, reach):
-        # over_steps.next_degenerate_steps, one case: the degenerate over step's length (0: none),
+        # the degenerate over step's length (0: none),
         # twice the distance at which sqrt of the branch test's size extrapolates to zero
         before, after = np.sqrt(size_before), np.sqrt(size_after)
         ahead = reach * after / (before - after)
@@ -78,13 +78,13 @@ def limits_part(
     @njit
     def over_step(length, y0, rate, fc, ctl, orient, law, p, geo, newton_tol, newton_max_iter,
                   y_raw, y_new, dy_new, ev_new, aux_new, y_half, ev, coefficients, degenerate, can_retry):
-        # over_steps.take_over_steps, one case: the predictor's end y0 + length dy/ds projected
-        # (y_new, with dy_new, ev_new, aux_new there) and the arclength of the step (arc_length)
+        # the over step (over_steps), one case: the predictor's end y0 + length dy/ds projected
+        # (y_new, with dy_new, ev_new, aux_new there) and the arclength of the step (arc_through)
         # where it is kept: it crossed a simple bifurcation point (the cofactor vector reversed,
         # the tangent within OVER_ALIGNMENT of the one it left), or, tried as ``degenerate``, a
         # degenerate point (aligned, not reversed).  Else 0.0 (nothing is kept), or -1.0 where
         # a degenerate over step is to follow (``can_retry``: aligned, not reversed, not
-        # degenerate).  The step's interpolant in coefficients (over_steps.over_interpolant:
+        # degenerate).  The step's interpolant in coefficients (over_steps:
         # y0 + sigma(f) dy/ds)
         m = state_size(y0)
         for j in range(m):
@@ -108,10 +108,24 @@ def limits_part(
         arc = arc_through(y0, y_half, y_new, ev_new, ctl, law, p, geo, ev)
         if not arc > 0:
             return 0.0
+        over_coefficients(length, arc, rate, m, coefficients)
+        return arc
+
+    @njit
+    def over_coefficients(length, arc, rate, m, coefficients):
+        # the over step's interpolant in the form of DOP853's dense output (dense_value):
+        # y0 + sigma(f) dy/ds with sigma(f) = L f + (arc - L) f (1 - f), which ends at the
+        # predictor's end (sigma(1) = L) and makes the arclength of the projected states
+        # proportional to f to second order
         for k in range(coefficients.shape[0]):
             for j in range(m):
                 coefficients[k, j] = 0.0
         for j in range(m):
             coefficients[0, j] = length * rate[j]
             coefficients[1, j] = (arc - length) * rate[j]
-        return arc
+
+    @njit
+    def richardson_arc(whole, halves):
+        # the length of an arc from its chord (whole) and the chords of its halves (halves),
+        # extrapolated (Richardson): exact to O(kappa^4 L^5) for a smooth arc of length L
+        return (4.0 * halves - whole) / 3.0

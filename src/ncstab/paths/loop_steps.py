@@ -32,7 +32,7 @@ def steps_part(
 
     @hot
     def combine(weights, terms, n_terms, stages, out):
-        # integrator.combine_stages for every component: term by term in stage order,
+        # sum_k w_k stages[k] for every component: term by term in stage order,
         # the first term and the non-zero weights after it (terms: their stage indices)
         m = state_size(out)
         w = weights[0]
@@ -46,7 +46,7 @@ def steps_part(
 
     @njit
     def error_norm(y0, y1, h, rtol, atol, stages, work):
-        # integrator.dop853_step's error norm (integrator.error_norm); inf where y1 or the
+        # DOP853's error norm (scipy's _estimate_error_norm); inf where y1 or the
         # norm is not finite
         sums, sums3 = work[1], work[2]
         m = state_size(y0)
@@ -78,7 +78,7 @@ def steps_part(
     @njit
     def dense_coefficients(y0, y_raw, h, fc, ctl, orient, law, p, geo, stages,
                            coefficients, work, ev, aux):
-        # integrator.dense_output (the three extra stages, unprojected)
+        # DOP853's dense output (scipy's: the three extra stages, unprojected)
         m = y0.size
         state, sums = work[0], work[1]
         for s in range(_STAGES + 1, _EXTENDED):
@@ -99,7 +99,7 @@ def steps_part(
 
     @njit
     def dense_value(y0, coefficients, fraction, out):
-        # integrator.evaluate_dense (scipy's Horner form)
+        # the dense output at a fraction (scipy's Horner form)
         for j in range(y0.size):
             value = 0.0
             for i in range(_POWER):
@@ -110,7 +110,7 @@ def steps_part(
     @njit
     def indicator_at(y, column, fc, ctl, lam_end, target_sign, turn_end, orient, secondary, law, p, geo,
                      newton_tol, newton_max_iter, ev, aux, values):
-        # crossings.locate_crossings.evaluate: project (total form), evaluate, one column.
+        # an indicator inside a piece: project (total form), evaluate, one column.
         # Without a projection, a column that is a function of y alone (the target, the
         # diamond's gaps) takes the same operations without the law (bit for bit).
         if rate_form:
@@ -140,7 +140,7 @@ def steps_part(
     def locate(column, h, offset, span, phi0, phi1, y0, coefficients, fc, ctl, lam_end, target_sign,
                turn_end, orient, secondary, law, p, geo, newton_tol, newton_max_iter, event_tol,
                ev, aux, values, state):
-        # events.locate_sign_changes, one pair: returns (sigma, lower, upper) in the piece
+        # a sign change located by the Illinois iteration (events), one pair: returns (sigma, lower, upper) in the piece
         # (offset, offset + span) of the step of length h; state at sigma
         lower, upper = 0.0, span
         f_lower, f_upper = phi0, phi1
@@ -179,7 +179,7 @@ def steps_part(
 
     @njit
     def first_column(columns, sigma):
-        # crossings.store_first_events: of an event's columns (-1: none), the one crossed first
+        # of an event's columns (-1: none), the one crossed first
         best, best_column = np.inf, -1
         for c in columns:
             if c >= 0 and (best_column < 0 or sigma[c] < best):
@@ -188,7 +188,7 @@ def steps_part(
 
     @njit
     def drop_limit_at_bifurcation(sigma, span, geo):
-        # cut_points.drop_limit_points_at_bifurcations: a zero of det K where the branch test
+        # a zero of det K where the branch test
         # changes sign too (within 1e-6 of the piece) is a simple bifurcation point
         bifurcation, limit = bifurcation_col(geo), limit_col(geo)
         if bifurcation >= 0 and np.isfinite(sigma[bifurcation]) and abs(sigma[limit] - sigma[bifurcation]) <= 1e-6 * span:
@@ -196,14 +196,14 @@ def steps_part(
 
     @njit
     def piece_count(h, sample_step, max_pieces):
-        # options.PathOptions.pieces: ceil(h / sample_step), between 1 and max_pieces
+        # PathOptions.pieces: ceil(h / sample_step), between 1 and max_pieces
         if not (h > sample_step):
             return 1
         return min(int(np.ceil(h / sample_step)), max_pieces)
 
     @njit
     def initial_step_size(y0, f0, f1, probe, rtol, atol):
-        # integrator.initial_step_size, one case (np.mean over m: a sum in order, then / m)
+        # Hairer's starting step (scipy's select_initial_step with a probe step), one case
         m = state_size(y0)
         s1 = 0.0
         s2 = 0.0
@@ -225,7 +225,7 @@ def steps_part(
     @njit
     def dop853(y0, f0, h, rtol, atol, fc, ctl, orient, law, p, geo, stages, y1, work, ev,
                aux):
-        # integrator.dop853_step; leaves ev, aux at the end state y1 (its last stage)
+        # one DOP853 step (scipy's tableau); leaves ev, aux at the end state y1 (its last stage)
         m = state_size(y0)
         state, sums = work[0], work[1]
         for j in range(m):

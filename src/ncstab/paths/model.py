@@ -63,23 +63,6 @@ class DiamondBatchTraits:
     interaction_shapes = {"l": (), "alpha": (), "N": (), "T": ()}
     domain_reasons = DOMAIN_REASONS
 
-    @staticmethod
-    def record_interactions(evaluation: Evaluation) -> dict[str, np.ndarray]:
-        """l, alpha, N, T of the contact, ``(B,)`` each."""
-        return {
-            "l": evaluation.q[:, 0, 0],
-            "alpha": evaluation.q[:, 0, 1],
-            "N": evaluation.normal[:, 0],
-            "T": evaluation.tangential[:, 0],
-        }
-
-    @staticmethod
-    def domain_codes(evaluation: Evaluation) -> np.ndarray:
-        """Per state, -1 inside the domain (l* > 0, |alpha| < pi/2), else the index of
-        the reason in :data:`DOMAIN_REASONS`."""
-        length, angle = evaluation.q[:, 0, 0], evaluation.q[:, 0, 1]
-        return np.where(~(length > 0), 1, np.where(~(np.abs(angle) < np.pi / 2), 2, -1))
-
 
 @dataclass(frozen=True)
 class CaseBatch(DiamondBatchTraits):
@@ -316,37 +299,3 @@ class CaseBatch(DiamondBatchTraits):
         return Evaluation(
             q, normal, tangential, u, forces, stiffness, identity, stiffness, gaps, self._overlap(q)
         )
-
-    def close_contact(self, y: np.ndarray, secondary_state: np.ndarray, gap: np.ndarray, layout: object) -> None:
-        """A gap crossed zero: toggle its bit (1, 2: secondary springs; 4: a
-        no_tension law's normal contact), in place."""
-        secondary_state ^= gap.astype(int)
-
-    def internal_rate(
-        self, evaluation: Evaluation, du: np.ndarray, secondary_state: np.ndarray | None = None
-    ) -> np.ndarray:
-        """d(internal)/ds along du/ds: dT = C_Tl dl + C_Ta dalpha (seed Eq. 13), (B, n_c)."""
-        if self.n_internal == 0:
-            return np.zeros(du.shape[:-1] + (0,))
-        if evaluation.internal_gradient is not None:
-            gradient = evaluation.internal_gradient
-            return (gradient[:, :, 0] * du[:, None, 0] + gradient[:, :, 1] * du[:, None, 1]) if du.shape[-1] == 2 else (
-                np.einsum("bkn,bn->bk", gradient, du)
-            )
-        q = evaluation.q
-        jacobian = self.system.contact_jacobian(q)  # (B, n_c, 2, n)
-        dq = (jacobian @ du[:, None, :, None])[..., 0]
-        if self.law.definition.no_tension:
-            is_open = self._normal_open(evaluation.displacements, secondary_state)
-            closed, opened = (self._internal_rate(law, evaluation, dq) for law in self._branch_laws())
-            return np.where(is_open[:, None], opened, closed)
-        return self._internal_rate(self.law, evaluation, dq)
-
-    def _internal_rate(self, law: Law, evaluation: Evaluation, dq: np.ndarray) -> np.ndarray:
-        q = evaluation.q
-        compiled = compile_law(law.definition)
-        rates = []
-        for c in range(self.system.n_contacts):
-            rate = compiled.rate_matrix(law, q[:, c, 0], q[:, c, 1], evaluation.normal[:, c], evaluation.tangential[:, c])
-            rates.append(rate[:, 1, 0] * dq[:, c, 0] + rate[:, 1, 1] * dq[:, c, 1])
-        return np.stack(rates, axis=-1)

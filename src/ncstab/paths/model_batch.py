@@ -184,10 +184,6 @@ class ModelBatch:
             state += (1 << (layout.n_gaps + j)) * (out[:, layout.overlaps + j] < 0)
         return state
 
-    def close_contact(self, y: np.ndarray, secondary_state: np.ndarray, bits: np.ndarray, layout: object) -> None:
-        """A gap or a normal contact crossed zero: toggle its bit, in place."""
-        secondary_state ^= bits.astype(int)
-
     @functools.cached_property
     def _kernel(self) -> ModelKernel:
         # kept on the batch: looking it up hashes the definition's sympy expressions
@@ -258,26 +254,3 @@ class ModelBatch:
             damping=block(layout.damping, n, n) if layout.inertia[1] else None,
             domain_code=out[:, layout.domain].astype(int),
         )
-
-    def internal_rate(self, evaluation: Evaluation, du: np.ndarray, secondary_state: np.ndarray | None = None) -> np.ndarray:
-        """d(internal)/ds along du/ds: df = C dq = C J du for the forces without a total form."""
-        if evaluation.internal_gradient is None:
-            return np.zeros(du.shape[:-1] + (0,))
-        return np.einsum("bkn,bn->bk", evaluation.internal_gradient, du)
-
-    # --- what is stored -----------------------------------------------------------------------
-    def record_interactions(self, evaluation: Evaluation) -> dict[str, np.ndarray]:
-        """Every family's variables and forces: name -> ``(B,)`` or ``(B, m)``."""
-        out = {}
-        for (family, names, _), (variables, forces) in zip(family_fields(self.definition), evaluation.interactions):
-            values = np.concatenate([variables, forces], axis=-1)
-            for a, name in enumerate(names):
-                column = values[..., a]
-                out[name] = column[:, 0] if family.size == 1 else column
-        return out
-
-    def domain_codes(self, evaluation: Evaluation) -> np.ndarray:
-        """Per state, -1 inside the domain, else the index of the first violated
-        condition in :attr:`domain_reasons` (contacts: l* > 0 and |alpha| < pi/2, then the
-        system's conditions), from the model kernel (:class:`KernelLayout`'s ``domain``)."""
-        return evaluation.domain_code

@@ -14,7 +14,13 @@ NORMAL_MODES = ("deformable", "rigid")
 #: PathOptions.initial_step estimated per case.
 AUTO = "auto"
 #: Steppers of the path engine (PathOptions.backend).
-BACKENDS = ("auto", "numpy", "compiled")
+BACKENDS = ("auto", "compiled")
+#: Backends that were retired, and what became of them (an old study file that names
+#: one gets this sentence in its error).
+RETIRED_BACKENDS = {
+    "numpy": "the numpy stepper was retired: every system runs on the compiled "
+    "stepper, so remove the option (backend = \"auto\" or \"compiled\" ask for the same)",
+}
 
 
 @dataclass(frozen=True)
@@ -56,14 +62,11 @@ class PathOptions:
     event_tol
         Width of the arclength bracket within which events are located.
     backend
-        ``"auto"`` (default): the compiled stepper (numba, one compiled loop
-        per case on every core, :mod:`ncstab.paths.compiled`), which covers
-        every system and programme (the numpy stepper only where numba is
-        missing); the archive's ``engine`` attribute says which ran.
-        ``"compiled"``: the same, asked for explicitly (an error without
-        numba).  ``"numpy"``: every case advances in numpy passes over the
-        batch, kept as a reference until retired.  Both steppers follow the
-        same paths to rounding.
+        ``"auto"`` (default) or ``"compiled"``, the same: the compiled stepper
+        (numba, one compiled loop per case on every core,
+        :mod:`ncstab.paths.compiled`), which covers every system and
+        programme; the archive's ``engine`` attribute says which version ran.
+        ``"numpy"`` (the numpy stepper, retired) is an error that says so.
     """
 
     rtol: float = 1e-10
@@ -94,6 +97,8 @@ class PathOptions:
             whole = isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
             if not (whole and value >= 1):
                 raise ValueError(f"PathOptions.{name} must be a positive integer, got {value!r}")
+        if self.backend in RETIRED_BACKENDS:
+            raise ValueError(f"PathOptions.backend = {self.backend!r}: {RETIRED_BACKENDS[self.backend]}")
         if self.backend not in BACKENDS:
             raise ValueError(
                 f"PathOptions.backend must be one of {', '.join(BACKENDS)}, got {self.backend!r}"

@@ -1,4 +1,4 @@
-"""One step of the engine: a DOP853 step, then the Newton projection onto equilibrium.
+"""The Newton projection onto equilibrium, for a batch of states (numpy).
 
 For a law with a total form the forces are functions of the state, so every
 accepted step is projected back onto the manifold of the constraints
@@ -9,6 +9,11 @@ system having one more unknown than equations.  With A = [M | -g'_eff]
 :func:`~ncstab.paths.tangent_field.effective_rate`), the correction is
 (dv, dlambda) = -A^T (A A^T)^-1 r: quadratic convergence from any nearby
 state, as for a square Newton system.
+
+The loop projects each step's end with its own per-case ``project`` (the model
+parts of :mod:`ncstab.paths.compiled`); this batched one serves what runs once
+per event, not per step: leaving a bifurcation point along a branch
+(:mod:`ncstab.paths.branch_switching`).
 """
 
 from __future__ import annotations
@@ -18,13 +23,17 @@ from typing import Any
 import numpy as np
 
 from ncstab.paths.cofactor import minimum_norm_steps
-from ncstab.paths.integrator import dop853_step
 from ncstab.paths.model import Evaluation
 from ncstab.paths.options import PathOptions
-from ncstab.paths.rhs import Auxiliary, StateLayout, evaluate_at, gather_evaluations, state_derivative, work_forces
+from ncstab.paths.rhs import (
+    StateLayout,
+    evaluate_at,
+    gather_evaluations,
+    work_forces,
+)
 from ncstab.paths.tangent_field import StageArrays, control_matrix, effective_rate
 
-__all__ = ["advance", "minimum_norm_correction", "project", "project_finite"]
+__all__ = ["minimum_norm_correction", "project", "project_finite"]
 
 
 def _correction_2(
@@ -170,37 +179,3 @@ def project_finite(
         err[index[~converged]] = np.inf
     return y, err, evaluation
 
-
-def advance(
-    batch: Any,
-    stage: StageArrays,
-    y0: np.ndarray,
-    h: np.ndarray,
-    layout: StateLayout,
-    options: PathOptions,
-    f0: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, "Auxiliary | Evaluation | None"]:
-    """One step of length h per case: DOP853, then Newton projection (total forms).
-
-    ``f0`` is dy/ds at ``y0`` where already known (first same as last: the
-    derivative at the end of the previous accepted step).  Returns the new
-    states, the error norms (inf where Newton failed), the unprojected DOP853
-    end states, the stage derivatives (for dense output) and what is already
-    known at the new states: without projection the auxiliary quantities
-    (an ``Auxiliary``, from the last stage, which is evaluated there); with it
-    the Newton projection's last evaluation (an ``Evaluation``, or ``None``
-    where some states were not projected).
-    """
-    last: list[Auxiliary] = []
-
-    def rhs(y: np.ndarray) -> np.ndarray:
-        dy, aux = state_derivative(batch, stage, y, layout)
-        last[:] = [aux]
-        return dy
-
-    y_raw, err, stages = dop853_step(rhs, y0, h, options.rtol, options.atol, f0=f0)
-    y1 = y_raw.copy()
-    if batch.has_total_form and y1.shape[0]:
-        y1, err, evaluation = project_finite(batch, stage, y1, err, layout, options)
-        return y1, err, y_raw, stages, evaluation
-    return y1, err, y_raw, stages, last[0]

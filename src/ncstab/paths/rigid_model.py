@@ -29,7 +29,8 @@ from ncstab.systems.diamond import DiamondChain
 
 __all__ = ["RigidCaseBatch"]
 
-FREE, TOP_BOTTOM, LEFT_RIGHT = 0, 1, 2
+#: Which gap blocked a chain (its state; 0: free).
+TOP_BOTTOM, LEFT_RIGHT = 1, 2
 
 
 @dataclass(frozen=True)
@@ -96,7 +97,7 @@ class RigidCaseBatch(DiamondBatchTraits):
     ) -> Evaluation:
         """u(v), F(v), their Jacobians and the contact state (seed Eq. 3, 4, 61-65), from the
         law's compiled kernel (:func:`ncstab.paths.compiled_rigid.rigid_rows`, the compiled
-        stepper's too).
+        loop's too).
 
         ``geometry_only`` and ``load`` are ignored (everything is cheap here; no load).
         """
@@ -114,29 +115,3 @@ class RigidCaseBatch(DiamondBatchTraits):
             rows[:, du : du + 4].reshape(size, 2, 2), rows[:, df : df + 4].reshape(size, 2, 2),
             rows[:, at["gaps"] : at["gaps"] + 2], np.full(size, np.nan),
         )
-
-    def internal_rate(self, evaluation: Evaluation, dv: np.ndarray, blocked: np.ndarray | None = None) -> np.ndarray:
-        """dThat/ds = (dThat/dalpha) dalpha/ds while free (0 when blocked); frozen alpha: 0."""
-        size = dv.shape[0]
-        blocked = np.zeros(size, dtype=int) if blocked is None else blocked
-        frozen_rate = np.zeros((size, 1))
-        if self.has_total_form:
-            return frozen_rate
-        alpha = evaluation.q[:, 0, 1]
-        alpha0 = np.broadcast_to(self._alpha0, (size,))
-        rate = self.rigid.tangential_rate_along(alpha, alpha0) * np.where(blocked == FREE, dv[:, 0], 0.0)
-        return np.column_stack([rate, frozen_rate[:, 0]])
-
-    def close_contact(self, y: np.ndarray, blocked: np.ndarray, gap: np.ndarray, layout) -> None:
-        """Blocking: switch free cases to v = (Nhat, Rhat = 0) with alpha frozen (in place)."""
-        closing = (blocked == FREE) & (gap > 0)
-        if not closing.any():
-            return
-        v = y[:, layout.v]
-        internal = y[:, layout.internal]
-        internal[closing, -1] = v[closing, 0]
-        v[closing, 0] = v[closing, 1]
-        v[closing, 1] = 0.0
-        y[:, layout.v] = v
-        y[:, layout.internal] = internal
-        blocked[closing] = gap[closing]

@@ -18,8 +18,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ncstab.paths.programme import BRANCH_DIMENSION, CURRENT, CycleStage, Stage
-from ncstab.paths.rhs import evaluate_at, state_derivative, tangent_at
-from ncstab.paths.integrator import initial_step_size
+from ncstab.paths.rhs import evaluate_at, tangent_at
 from ncstab.paths.tangent_field import StageArrays
 
 if TYPE_CHECKING:
@@ -86,7 +85,7 @@ def _set_up_stage(stepper: BatchStepper, index: np.ndarray, k: int) -> tuple[np.
         lam, bad, reasons = _cycle_stage(stepper, stage, k, index, current, u, arrays)
     stepper.y[index, layout.lam] = lam
     zero_length = (arrays.target_sign == 0) & ~bad
-    dlam = tangent_at(evaluation, arrays, lam, oriented=False).dlam
+    dlam = tangent_at(evaluation, arrays, lam).dlam
     singular = ~(np.abs(dlam) > 0) & ~bad & ~zero_length
     reasons[singular] = (
         f"stage {k + 1}: the control is singular at the stage start (det of the "
@@ -251,36 +250,13 @@ def resolve(stepper: BatchStepper, value: float | str, index: np.ndarray) -> np.
 
 
 def _start_stage(stepper: BatchStepper, index: np.ndarray) -> None:
-    """Cases ``index`` start their (set up) stage: dy/ds, indicators, state stored, turn;
-    the first step length where it is still to be estimated."""
-    if stepper.compiled is not None:  # no cycle stage there: no turn to start
-        stepper.compiled.start(stepper, index)  # estimates the first steps too
-        return
-    from ncstab.paths.accepted_steps import indicators_at
-
-    batch, stage, y = _batch_of(stepper, index), stepper.stages.take(index), stepper.y[index]
-    dy, aux = state_derivative(batch, stage, y, stepper.layout)
-    stepper.derivative[index] = dy
-    stepper.indicators[index] = indicators_at(batch, stage, y, aux, stepper.layout)
-    stepper.record(index, y, aux, stage)
-    stepper.turns.start(index, stepper.y[index, stepper.layout.work], aux.evaluation)
-    _estimate_first_steps(stepper, index[np.isnan(stepper.step_size[index])])
+    """Cases ``index`` start their (set up) stage on the compiled loop: dy/ds, indicators,
+    the state stored, a cycle's turn started; the first step length where it is still to
+    be estimated (Hairer's estimate from a probe step, :func:`probe_step`)."""
+    stepper.compiled.start(stepper, index)
 
 
 def probe_step(stepper: BatchStepper) -> float:
     """The probe step of the first-step estimate: min(1e-3, max_step)."""
     return min(1e-3, stepper.options.max_step)
 
-
-def _estimate_first_steps(stepper: BatchStepper, index: np.ndarray) -> None:
-    """First step lengths of cases ``index`` (``initial_step = "auto"``): Hairer's
-    estimate (:func:`~ncstab.paths.integrator.initial_step_size`) from a probe step
-    along dy/ds."""
-    if index.size == 0:
-        return
-    probe = probe_step(stepper)
-    y0, f0 = stepper.y[index], stepper.derivative[index]
-    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
-        f1, _ = state_derivative(_batch_of(stepper, index), stepper.stages.take(index), y0 + probe * f0, stepper.layout)
-    options = stepper.options
-    stepper.step_size[index] = initial_step_size(y0, f0, f1, probe, options.rtol, options.atol)

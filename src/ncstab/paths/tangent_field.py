@@ -28,7 +28,17 @@ while the path goes straight on.  Each state's tangent is therefore also
 oriented by continuity: against the motion at the start of the current step
 (``StageArrays.reference``), the orientation being flipped where their
 product is negative.  On a regular path (limit points included: there the
-cofactor vector is smooth and non-zero) this never flips anything.
+cofactor vector is smooth and non-zero) this never flips anything.  The
+component of the (oriented, unflipped) cofactor vector along that motion is
+the *branch test*: it changes sign exactly where the cofactor vector passes
+through zero and turns against the motion (a simple bifurcation point: it is
+the bordered determinant det [[M, -g'], [t^T]] of a continuation code), and
+never at a limit point, where the cofactor vector turns smoothly with the path.
+
+The compiled loop orients each step's tangents so and computes the branch
+test (``tangent_at`` and ``branch_test`` in its model parts,
+:mod:`ncstab.paths.compiled`).  :func:`path_tangent` is the batched tangent
+that stage entry reads once per stage (:mod:`ncstab.paths.stage_entry`).
 """
 
 from __future__ import annotations
@@ -197,16 +207,6 @@ class PathTangent:
         ``(B,)`` the driven parameter's rate.
     det_m
         ``(B,)`` det M, the mixed-control determinant (unscaled).
-    branch
-        ``(B,)`` the branch test: the component of the (oriented, unflipped)
-        cofactor vector along the reference motion.  It changes sign exactly
-        where the cofactor vector passes through zero and turns against the
-        motion (a simple bifurcation point: it is the bordered determinant
-        det [[M, -g'], [t^T]] of a continuation code), and never at a limit
-        point, where the cofactor vector turns smoothly with the path.
-    flipped
-        ``(B,)`` bool: the tangent was flipped to continue the reference
-        (every state past a bifurcation point, until the next one).
     """
 
     dv: np.ndarray
@@ -214,8 +214,6 @@ class PathTangent:
     dF: np.ndarray
     dlam: np.ndarray
     det_m: np.ndarray
-    branch: np.ndarray | None = None
-    flipped: np.ndarray | None = None
 
     def motion(self) -> np.ndarray:
         """``(B, 2n + 1)``: (du, dF, dlambda), the vector the orientation continues."""
@@ -227,23 +225,21 @@ def path_tangent(
     df_dv: np.ndarray,
     stage: StageArrays,
     lam: np.ndarray,
-    oriented: bool = True,
     dF_dload: np.ndarray | None = None,
 ) -> PathTangent:
-    """Unit tangent of the path in state coordinates, and det M.
+    """Unit tangent of the path in state coordinates, and det M (not oriented: the
+    cofactor vector's own sign).
 
     Normalised so that |du|^2 + |dF|^2 + dlambda^2 = 1 with du = (du/dv) dv and
     dF = (dF/dv) dv + dR/dP dP (the load's term where the system has one,
-    ``dF_dload`` = dR/dP ``(B, n)``).  ``oriented``: times the stage's orientation,
-    then flipped where it would reverse ``stage.reference`` (the motion at the
-    start of the step; NaN: no reference).  NaN where the null space is not
+    ``dF_dload`` = dR/dP ``(B, n)``).  NaN where the null space is not
     one-dimensional (adj(M) g' = 0 and det M = 0).
     """
     _, dg = stage.control_path(lam)
     dg = effective_rate(stage, dg, dF_dload)
     load_rate = None if dF_dload is None else dF_dload * stage.load_slope[:, None]
     if dg.shape[-1] == 2:
-        tangent = _path_tangent_2(du_dv, df_dv, stage, dg, oriented, load_rate)
+        return _path_tangent_2(du_dv, df_dv, dg, stage.force_controlled, load_rate)
     else:
         matrix = control_matrix(du_dv, df_dv, stage.force_controlled)
         dv, det_m = cofactor_vectors(matrix, dg)  # (adj(M) g', det M) from one QR decomposition
@@ -255,43 +251,20 @@ def path_tangent(
         norm = np.sqrt(np.sum(du**2, -1) + np.sum(df**2, -1) + dlam**2)
         with np.errstate(invalid="ignore", divide="ignore"):
             scale = np.where(norm > 0, 1.0 / norm, np.nan)
-        if oriented:
-            scale = scale * stage.orientation
-        tangent = PathTangent(dv * scale[:, None], du * scale[:, None], df * scale[:, None], dlam * scale, det_m)
-        tangent.branch = norm
-    if oriented:
-        _continue_reference(tangent, stage.reference)
-    return tangent
-
-
-def _continue_reference(tangent: PathTangent, reference: np.ndarray) -> None:
-    """Flip (in place) the tangents whose motion reverses ``reference`` (NaN rows: none),
-    and set the branch test from the unscaled norm held in ``tangent.branch``."""
-    with np.errstate(invalid="ignore"):
-        product = np.sum(tangent.motion() * reference, axis=-1) / np.sqrt(np.sum(reference * reference, axis=-1))
-    flip = product < 0
-    tangent.flipped = flip
-    if tangent.branch is not None:
-        tangent.branch = np.where(np.isfinite(product), product, 1.0) * tangent.branch
-    if flip.any():
-        for name in ("dv", "du", "dF"):
-            value = getattr(tangent, name)
-            value[flip] = -value[flip]
-        tangent.dlam = np.where(flip, -tangent.dlam, tangent.dlam)
+    return PathTangent(dv * scale[:, None], du * scale[:, None], df * scale[:, None], dlam * scale, det_m)
 
 
 def _path_tangent_2(
     du_dv: np.ndarray,
     df_dv: np.ndarray,
-    stage: StageArrays,
     dg: np.ndarray,
-    oriented: bool,
+    force_controlled: np.ndarray,
     load_rate: np.ndarray | None = None,
 ) -> PathTangent:
     """:func:`path_tangent` for n = 2 in closed form: the adjugate, det M and the
     products with du/dv and dF/dv written out entry by entry (no (B, 2, 2)
     temporaries, no matmul)."""
-    fc0, fc1 = stage.force_controlled[:, 0], stage.force_controlled[:, 1]
+    fc0, fc1 = force_controlled[:, 0], force_controlled[:, 1]
     m00 = np.where(fc0, df_dv[:, 0, 0], du_dv[:, 0, 0])
     m01 = np.where(fc0, df_dv[:, 0, 1], du_dv[:, 0, 1])
     m10 = np.where(fc1, df_dv[:, 1, 0], du_dv[:, 1, 0])
@@ -315,9 +288,7 @@ def _path_tangent_2(
     norm = np.sqrt((du0 * du0 + du1 * du1) + (df0 * df0 + df1 * df1) + det_m * det_m)
     with np.errstate(invalid="ignore", divide="ignore"):
         scale = np.where(norm > 0, 1.0 / norm, np.nan)
-    if oriented:
-        scale = scale * stage.orientation
     dv *= scale[:, None]
     du *= scale[:, None]
     df *= scale[:, None]
-    return PathTangent(dv, du, df, det_m * scale, det_m, norm)
+    return PathTangent(dv, du, df, det_m * scale, det_m)
