@@ -100,7 +100,7 @@ def test_the_minimum_norm_step_solves_the_constraint_with_the_least_norm(n):
 
 def test_a_rank_deficient_constraint_is_left_to_least_squares():
     """[M | -g'] of rank n - 1 (a row of zeros): not solved, NaN out, for the caller's
-    least squares (ncstab.paths.projection.minimum_norm_correction)."""
+    least squares (the loop's ``least_squares_step``, below)."""
     from ncstab.paths.cofactor import minimum_norm_steps
 
     matrices = np.eye(4)[None].copy()
@@ -111,20 +111,31 @@ def test_a_rank_deficient_constraint_is_left_to_least_squares():
 
 
 def test_the_projection_falls_back_to_least_squares_for_a_rank_deficient_constraint():
-    """minimum_norm_correction with 4 dofs, one row of [M | -g'] zero and its residual
-    zero (a consistent system of lower rank): the least-squares correction solves it."""
-    from ncstab.paths.projection import minimum_norm_correction
+    """The general loop's Newton projection, where minimum_norm_step finds no
+    correction: 4 dofs, one row of [M | -g'] zero and its residual zero (a consistent
+    system of lower rank).  Its least-squares step (``least_squares_step``, called
+    through a numba function: the loop compiles it without a Python wrapper) solves it
+    to rounding (entries of size ~1: 1e-12)."""
+    import numba
+
+    from ncstab.paths.compiled_source import general_loop_source, load_module
+
+    least_squares_step = load_module(general_loop_source(False), "ncstab_general_loop").least_squares_step
+
+    @numba.njit
+    def step_of(matrix, rate, residual):
+        out = np.empty(rate.size + 1)
+        least_squares_step(matrix, rate, residual, out)
+        return out
 
     rng = np.random.default_rng(8)
-    matrix = rng.normal(size=(1, 4, 4))
-    matrix[0, 2] = 0.0
-    rates = rng.normal(size=(1, 4))
-    rates[0, 2] = 0.0
-    residual = rng.normal(size=(1, 4))
-    residual[0, 2] = 0.0
-    controlled = np.zeros((1, 4), dtype=bool)  # M = du/dv: the matrix given as du/dv
-    dv, dlam = minimum_norm_correction(matrix, matrix, controlled, rates, residual)
-    x = np.column_stack([dv, dlam])
-    a = np.concatenate([matrix, -rates[:, :, None]], axis=-1)
+    matrix = rng.normal(size=(4, 4))
+    matrix[2] = 0.0
+    rates = rng.normal(size=4)
+    rates[2] = 0.0
+    residual = rng.normal(size=4)
+    residual[2] = 0.0
+    x = step_of(matrix, rates, residual)
+    a = np.concatenate([matrix, -rates[:, None]], axis=-1)
     assert np.isfinite(x).all()
-    np.testing.assert_allclose(np.einsum("bij,bj->bi", a, x), -residual, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(a @ x, -residual, rtol=0, atol=1e-12)

@@ -5,9 +5,8 @@
   assembly (:func:`tangent_operator_at_contact_state`, the system's
   ``generalized_forces`` and the law's rate matrix), for every law of the
   catalogue, both smooth branches of a no_tension law and the secondary springs.
-- A case's batched evaluation, path tangent and Newton projection (stage entry,
-  branch switching) are bitwise the same whatever batch it is in (no reduction
-  across cases).
+- A case's batched evaluation (stage entry, branch switching) is bitwise the same
+  whatever batch it is in (no reduction across cases).
 - The padded recorder keeps each case's states in order.
 """
 
@@ -21,13 +20,11 @@ import pytest
 from ncstab.laws.catalogue import no_tension_branches
 from ncstab.laws.registry import law_definition, make_law
 from ncstab.operators.tangent import compile_state_kernel, tangent_operator_at_contact_state
-from ncstab.paths import PathOptions, SystemSpec
+from ncstab.paths import SystemSpec
 from ncstab.paths.api import case_batch
-from ncstab.paths.projection import project as _project
 from ncstab.paths.recorder import Recorder as _Recorder
 from ncstab.paths.rhs import StateLayout as _Layout
 from ncstab.paths.rhs import evaluate_at as _evaluate_at
-from ncstab.paths.rhs import tangent_at as _tangent_at
 from ncstab.paths.model import NORMAL_OPEN
 from ncstab.paths.tangent_field import StageArrays
 from ncstab.symbolic.compile import compile_law
@@ -101,7 +98,9 @@ def test_fused_evaluation_matches_the_general_evaluation(name, secondary, monkey
 
 
 @pytest.mark.parametrize("name", ["mcnamara", "cundall_strack"])
-def test_tangent_and_projection_of_a_case_do_not_depend_on_its_batch(name):
+def test_the_batched_evaluation_of_a_case_does_not_depend_on_its_batch(name):
+    """What stage entry and branch switching read (forces, K, the control matrix's
+    blocks, the gaps) is the same bits for a case alone, in a slice or reversed."""
     size = 257
     u, t_internal, gamma = _states(size, seed=3)
     values = {"gamma": gamma, "alpha0": np.full(size, math.pi / 4)}
@@ -113,21 +112,16 @@ def test_tangent_and_projection_of_a_case_do_not_depend_on_its_batch(name):
     if batch.n_internal:
         y[:, layout.internal] = t_internal[:, None]
     stage = StageArrays.empty(size, 2)
-    stage.force_controlled[:, 1] = True
-    stage.slope[:, 0] = 1.0
-    stage.offset[:, 1] = np.linspace(-0.05, 0.05, size)
-    def tangent(sub, st, states):
-        evaluation = _evaluate_at(sub, st, states, layout)
-        return np.column_stack([_tangent_at(evaluation, st, states[:, layout.lam]).dv, evaluation.forces])
 
-    dy = tangent(batch, stage, y)
-    options = PathOptions()
-    projected = _project(batch, stage, y, layout, options)[0] if batch.has_total_form else None
+    def read(sub, st, states):
+        evaluation = _evaluate_at(sub, st, states, layout)
+        return np.column_stack([
+            evaluation.forces, evaluation.stiffness.reshape(-1, 4), evaluation.dF_dv.reshape(-1, 4), evaluation.gaps,
+        ])
+
+    whole = read(batch, stage, y)
     for index in (np.array([5]), np.arange(3, 200, 7), np.arange(size)[::-1]):
-        sub, st = batch.take(index), stage.take(index)
-        np.testing.assert_array_equal(tangent(sub, st, y[index]), dy[index])
-        if projected is not None:
-            np.testing.assert_array_equal(_project(sub, st, y[index], layout, options)[0], projected[index])
+        np.testing.assert_array_equal(read(batch.take(index), stage.take(index), y[index]), whole[index])
 
 
 def test_recorder_keeps_each_case_in_order_across_growth():

@@ -335,10 +335,8 @@ def test_the_newton_projection_of_an_n_dof_system_converges_quadratically():
     """From a state 1e-3 off equilibrium, the residual of the axes diamond's mixed
     control falls as r_{k+1} <= C r_k^2 (C = 10 here) to below 1e-13 in a few
     iterations (before the fix of the shared correction array it stalled at 1e-11)."""
-    from ncstab.paths.projection import minimum_norm_correction
-    from ncstab.paths.programme import parse_programme
-    from ncstab.paths.rhs import StateLayout
-    from ncstab.paths.tangent_field import StageArrays, effective_rate
+    from ncstab.paths.cofactor import minimum_norm_steps
+    from ncstab.paths.tangent_field import StageArrays, control_matrix
 
     batch = _batch(SystemSpec("diamond", reduction="axes"), "mcnamara", {"gamma": 1.1})
     stage = StageArrays.empty(1, 4)
@@ -355,7 +353,9 @@ def test_the_newton_projection_of_an_n_dof_system_converges_quadratically():
         if residuals[-1] < 1e-14:
             break
         _, dg = stage.control_path(lam)
-        dv, dlam = minimum_norm_correction(evaluation.du_dv, evaluation.dF_dv, stage.force_controlled, dg, r)
+        matrix = control_matrix(evaluation.du_dv, evaluation.dF_dv, stage.force_controlled)
+        dv, dlam, solved = minimum_norm_steps(matrix, dg, r)  # the loop's correction, case by case
+        assert solved.all()
         u = u + dv
         lam = lam + dlam
     assert residuals[-1] < 1e-13

@@ -19,7 +19,8 @@ taken by central differences of the engine's own tangent (step 1e-5: the
 coefficients to about 1e-10, far more than the choice of a direction needs;
 the branch itself is then followed to the integrator's accuracy).  The path
 leaves x* by a short step along the chosen direction and is projected back
-onto equilibrium (laws with a total form) before the engine goes on.
+onto equilibrium (laws with a total form) by the loop's Newton projection
+before the loop goes on.
 """
 
 from __future__ import annotations
@@ -28,12 +29,12 @@ from typing import Any
 
 import numpy as np
 
-from ncstab.paths.options import PathOptions
-from ncstab.paths.projection import project_finite
 from ncstab.paths.rhs import StateLayout, evaluate_at, work_forces
 from ncstab.paths.tangent_field import StageArrays, control_matrix, effective_rate
 
-__all__ = ["DERIVATIVE_STEP", "LEAVING_STEP", "bifurcating_direction", "leave_along_branch", "switch_branch"]
+__all__ = [
+    "DERIVATIVE_STEP", "LEAVING_STEP", "bifurcating_direction", "branch_motion", "leave_along_branch", "switch_branch",
+]
 
 #: Step of the central differences for the second derivatives of G.
 DERIVATIVE_STEP = 1e-5
@@ -132,34 +133,39 @@ def switch_branch(
     incoming: np.ndarray,
     sense: np.ndarray,
     layout: StateLayout,
-    options: PathOptions,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Leave the bifurcation points ``y`` along the bifurcating branch, way ``sense`` (+-1).
 
     Returns the new states (a step of :data:`LEAVING_STEP` along the branch, its work
-    added, projected onto equilibrium for laws with a total form) and the direction
+    added; for a law with a total form the caller projects them back onto equilibrium,
+    :meth:`ncstab.paths.compiled_stages.CompiledStages.settle`) and the direction
     taken ``(B, n + 1)`` in (v, lambda).
     """
     direction = sense[:, None] * bifurcating_direction(batch, stage, y, incoming, layout)
     moved = _shifted(y, direction, LEAVING_STEP, layout)
     moved[:, layout.work] += _shift_work(batch, stage, y, moved, layout)
-    if batch.has_total_form:
-        moved, _, _ = project_finite(batch, stage, moved, np.zeros(y.shape[0]), layout, options)
     return moved, direction
 
 
 def leave_along_branch(
-    batch: Any, stage: StageArrays, y: np.ndarray, incoming: np.ndarray, layout: StateLayout, options: PathOptions
+    batch: Any, stage: StageArrays, y: np.ndarray, incoming: np.ndarray, layout: StateLayout
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Cases at simple bifurcation points ``y`` whose stage switches branch, the way
-    ``stage.switch`` (+-1) says (:func:`switch_branch`): their new states, and the motion
-    (du, dF, dlambda) ``(B, 2n + 1)`` along the direction taken, the reference the next
-    tangents continue (so that the path goes on along the new branch, not back)."""
-    moved, direction = switch_branch(batch, stage, y, incoming, stage.switch.astype(float), layout, options)
-    evaluation = evaluate_at(batch, stage, moved, layout)
+    """Cases at simple bifurcation points ``y`` whose stage switches branch leave the way
+    ``stage.switch`` (+-1) says (:func:`switch_branch`): their new states (not yet
+    projected) and the direction taken."""
+    return switch_branch(batch, stage, y, incoming, stage.switch.astype(float), layout)
+
+
+def branch_motion(
+    batch: Any, stage: StageArrays, y: np.ndarray, direction: np.ndarray, layout: StateLayout
+) -> np.ndarray:
+    """The motion (du, dF, dlambda) ``(B, 2n + 1)`` along ``direction`` (in (v, lambda)) at
+    the states ``y`` the cases left to: the reference the next tangents continue (so that
+    the path goes on along the new branch, not back)."""
+    evaluation = evaluate_at(batch, stage, y, layout)
     dv, dlam = direction[:, :-1], direction[:, -1]
     du = np.einsum("bij,bj->bi", evaluation.du_dv, dv)
     dF = np.einsum("bij,bj->bi", evaluation.dF_dv, dv)
     if evaluation.dF_dload is not None:
         dF = dF + evaluation.dF_dload * (stage.load_slope * dlam)[:, None]
-    return moved, np.concatenate([du, dF, dlam[:, None]], axis=-1)
+    return np.concatenate([du, dF, dlam[:, None]], axis=-1)

@@ -29,7 +29,8 @@ the square of A's).  Each function is one case, written in plain Python and
 compiled by numba in a generated module of the cache folder (so that numba's
 machine code is kept there: :func:`ncstab.generated_modules.compiled_module`;
 a compiled loop pastes them as they are); :func:`cofactor_vectors` and
-:func:`minimum_norm_steps` run a batch, one case after the other.
+:func:`minimum_norm_steps` run a batch, one case after the other (for tests and
+scripts: the engine calls the per-case functions from its loop).
 """
 
 from __future__ import annotations

@@ -94,10 +94,12 @@ EVENT_FIELDS = (
 
 class StageLoop(NamedTuple):
     """The compiled functions of one law: ``run`` (cases through their stage),
-    ``start`` (cases entering a stage) and ``law`` (the law's kernel, passed to both)."""
+    ``start`` (cases entering a stage), ``settle`` (states projected, and the rate of
+    lambda there) and ``law`` (the law's kernel, passed to all three)."""
 
     run: Callable[..., None]
     start: Callable[..., None]
+    settle: Callable[..., None]
     law: Any = None
     uses_alpha: bool = True
 
@@ -169,7 +171,7 @@ def _runner(
     uses_alpha |= overlap is not None and re.search(r"\balpha\b", kernel_body(overlap)) is not None
     loop = load_module(loop_source(rate_form), "ncstab_stage_loop").LOOP
     law = load_module(kernel_source(kernels, overlap, n_parameters, 10 if rate_form else 8), "ncstab_law").LAW
-    return StageLoop(loop.run, loop.start, law, uses_alpha)
+    return StageLoop(loop.run, loop.start, loop.settle, law, uses_alpha)
 
 
 @functools.cache

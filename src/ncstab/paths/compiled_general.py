@@ -38,7 +38,7 @@ def general_runner(rate_form: bool) -> StageLoop:
     from ncstab.paths.compiled_source import general_loop_source, load_module
 
     loop = load_module(general_loop_source(rate_form), "ncstab_general_loop").LOOP
-    return StageLoop(loop.run, loop.start)
+    return StageLoop(loop.run, loop.start, loop.settle)
 
 
 class GeneralStages(CompiledStages):
@@ -58,7 +58,7 @@ class GeneralStages(CompiledStages):
         size, n = batch.size, batch.n_dof
         kernel = batch._kernel
         layout, module = kernel.layout, kernel.module
-        self.runner, self.starter, self.law = loop.run, loop.start, kernel.callback
+        self.runner, self.starter, self.settler, self.law = loop.run, loop.start, loop.settle, kernel.callback
         self.batch = batch
         # p: the kernel's parameter row, the work factor, the contact-state bits (loop_general)
         self.parameters = np.column_stack([batch._rows, np.full(size, batch.work_factor), np.zeros(size)])

@@ -212,7 +212,7 @@ class RigidStages(GeneralStages):
         size, n = batch.size, 2
         rate_form = not batch.has_total_form
         row = rigid_row(rate_form)
-        self.runner, self.starter = loop.run, loop.start
+        self.runner, self.starter, self.settler = loop.run, loop.start, loop.settle
         self.law = rigid_module(batch.law.definition).case
         self.batch = batch
         # p: alpha0, the work factor, the contact state (0 free, else the blocking gap's bit)

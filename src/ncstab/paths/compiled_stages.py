@@ -79,6 +79,7 @@ class CompiledStages:
         size = batch.size
         self.runner = loop.run
         self.starter = loop.start
+        self.settler = loop.settle
         self.law = loop.law
         # Per case (compiled.KAPPA_SLOT, ...): kappa, whether the secondary-contact springs act,
         # the contact-state bits (kept in step with the stepper's around each call), whether
@@ -129,6 +130,24 @@ class CompiledStages:
 
             evaluation = evaluate_at(stepper.batch.take(cycling), stages.take(cycling), stepper.y[cycling], stepper.layout)
             stepper.turns.start(cycling, stepper.y[cycling, stepper.layout.work], evaluation)
+
+    def settle(
+        self, stepper: BatchStepper, cases: np.ndarray, stage: Any, projected: bool
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The loop's ``settle`` (:mod:`ncstab.paths.loop_start`) for cases ``cases`` in
+        ``stage`` (their stage arrays, row k for case ``cases[k]``): where ``projected``,
+        their states ``stepper.y`` projected onto equilibrium in place by the loop's Newton
+        projection; dlambda/ds of the unoriented path tangent there, and whether each
+        projection converged."""
+        rates = np.full(cases.size, np.nan)
+        converged = np.ones(cases.size, dtype=bool)
+        options = stepper.options
+        self.settler(
+            cases.astype(np.int64), stepper.y, np.ascontiguousarray(stage.force_controlled), self.control_rows(stage),
+            np.ascontiguousarray(stage.secondary_state, dtype=np.int64), self.law, self.parameters, self.geometry,
+            projected, options.newton_tol, options.newton_max_iter, rates, converged,
+        )
+        return rates, converged
 
     def _store_start(self, stepper: BatchStepper, cases: np.ndarray) -> None:
         """dy/ds and the indicators at the states of ``cases``, and the states stored (the
@@ -297,15 +316,17 @@ class CompiledStages:
         state is stored, and the loop goes on from it with the motion there as reference."""
         if cases.size == 0:
             return
-        from ncstab.paths.branch_switching import leave_along_branch
+        from ncstab.paths.branch_switching import branch_motion, leave_along_branch
 
         layout, stages = stepper.layout, stepper.stages
         stage = stages.take(cases)
+        batch = stepper.batch.take(cases)
         incoming = np.concatenate([stepper.derivative[cases][:, layout.v], stepper.derivative[cases, layout.lam, None]],
                                   axis=-1)
-        stepper.y[cases], stages.reference[cases] = leave_along_branch(
-            stepper.batch.take(cases), stage, stepper.y[cases], incoming, layout, stepper.options
-        )
+        stepper.y[cases], direction = leave_along_branch(batch, stage, stepper.y[cases], incoming, layout)
+        if batch.has_total_form:  # back onto equilibrium, by the loop's projection
+            self.settle(stepper, cases, stage, projected=True)
+        stages.reference[cases] = branch_motion(batch, stage, stepper.y[cases], direction, layout)
         stages.switched[cases] = True
         stepper.branch_index[cases] = stage.switch
         reset_over_steps(stepper, cases)  # none planned from the bifurcation point (its branch test is ~0 there)

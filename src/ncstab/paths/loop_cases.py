@@ -375,4 +375,4 @@ def cases_part(
                 if ended:
                     break
 
-    return StageLoop(run_cases, start)
+    return StageLoop(run_cases, start, settle)

@@ -13,11 +13,10 @@ and the model is its compiled kernel's C callback (``law``,
 :class:`~ncstab.operators.model_kernel_source.KernelLayout` (F, K, dF/dP,
 d(internal)/du, gaps, overlaps, the domain code, the interactions).
 
-The cofactor tangent and the Newton correction for n > 2 dofs are those of
-the batched numpy tangent and projection (stage entry, branch switching), one
-implementation: :func:`ncstab.paths.cofactor.cofactor_vector`
-and :func:`~ncstab.paths.cofactor.minimum_norm_step`, pasted into the module
-(tangent_field.path_tangent, projection.project; seed Eq. 30-34).  The
+The cofactor tangent and the Newton correction are
+:func:`ncstab.paths.cofactor.cofactor_vector` and
+:func:`~ncstab.paths.cofactor.minimum_norm_step`, pasted into the module as they
+are (seed Eq. 30-34).  The
 indicators are those of a general layout (:mod:`ncstab.paths.events`, part 1b).
 """
 
@@ -359,7 +358,7 @@ def general_part(
 
     @njit
     def least_squares_step(matrix, rate, residual, step):
-        # projection.minimum_norm_correction, a rank-deficient case: least squares on the
+        # a rank-deficient correction (minimum_norm_step found none): least squares on the
         # normal matrix M M^T + g' g'^T (NaN where an entry is not finite)
         n = rate.shape[0]
         finite = True

@@ -3,7 +3,10 @@
 Pasted before :mod:`ncstab.paths.loop_cases` (see :mod:`ncstab.paths.loop_model`):
 ``start`` computes dy/ds and the indicators at each case's (set up) state,
 stores it, and estimates the first step where it is still to be estimated
-(called by :func:`ncstab.paths.stage_entry.enter`).  The parameters of
+(called by :func:`ncstab.paths.stage_entry.enter`); ``settle`` projects states
+onto equilibrium and gives the rate of lambda along the unoriented tangent
+there (stage entry orients a stage by it; branch switching projects the state
+it leaves to).  The parameters of
 :func:`start_part` are the names it uses from the parts before it (it is never
 called).
 """
@@ -17,26 +20,29 @@ __all__ = ["start_part"]
 
 
 def start_part(
-    aux_size, ev_size, indicators, initial_step_size, motion_size, rhs, set_state, state_size, store_record,
+    aux_size, ev_size, indicators, initial_step_size, motion_size, project, rhs, set_state, state_size, store_record,
 ) -> None:
     """Define ``start`` (a template: see the module docstring)."""
+
+    @numba.njit(cache=False, error_model="numpy")
+    def scratch(y, geometry, cases):
+        # a state's size M, the motion's size, and scratch for a state, an evaluation, the
+        # tangent's auxiliaries and the orientation, sized by the first case's row
+        first = geometry[cases[0]]
+        M, n_motion = state_size(y[cases[0]]), motion_size(first)
+        return M, n_motion, np.empty(M), np.empty(ev_size(first)), np.empty(aux_size(first)), np.empty(1 + n_motion)
 
     @numba.njit(cache=False, error_model="numpy")
     def start(cases, y, derivative, indicator_table, arclength, force_controlled, control_rows, lam_end,
               target_sign, orientation, reference, secondary_state, cycles_done, law, parameters, geometry,
               stage_number, recorded, record_count, step_size, probe, rtol, atol):
-        """Cases ``cases`` start their (set up) stage: dy/ds, indicators, state stored
-        (stage_entry._start_stage); the first step where ``step_size`` is NaN
-        (Hairer's estimate from a probe step, stage_entry.probe_step)."""
+        """Cases ``cases`` start their (set up) stage: dy/ds, indicators, state stored;
+        the first step where ``step_size`` is NaN (Hairer's estimate from a probe step,
+        stage_entry.probe_step)."""
         if cases.size == 0:
             return
-        first = geometry[cases[0]]
-        M, n_motion = state_size(y[cases[0]]), motion_size(first)
-        state = np.empty(M)
-        ev = np.empty(ev_size(first))
-        aux = np.empty(aux_size(first))
+        M, n_motion, state, ev, aux, orient = scratch(y, geometry, cases)
         f1 = np.empty(M)
-        orient = np.empty(1 + n_motion)
         for i in cases:
             orient[0] = orientation[i]
             for k in range(n_motion):
@@ -57,3 +63,28 @@ def start_part(
                 rhs(state, fc, ctl, orient, law, parameters[i], geo, f1, ev, aux)
                 step_size[i] = initial_step_size(y[i], derivative[i], f1, probe, rtol, atol)
 
+    @numba.njit(cache=False, error_model="numpy")
+    def settle(cases, y, force_controlled, control_rows, secondary_state, law, parameters, geometry, projected,
+               newton_tol, newton_max_iter, rates, converged):
+        """Cases ``cases`` (row k of the stage arrays is case ``cases[k]``; ``parameters``,
+        ``geometry`` and ``y`` are the batch's): where ``projected``, their states are
+        first projected onto equilibrium under the stage's control (the loop's Newton
+        projection, in place in ``y``; ``converged[k]`` says whether it converged); then
+        ``rates[k]`` is dlambda/ds of the path tangent there, not oriented (the cofactor
+        vector's own sign: stage entry orients the stage by it, and a control that is
+        singular there gives 0 or NaN)."""
+        if cases.size == 0:
+            return
+        _, n_motion, dy, ev, aux, orient = scratch(y, geometry, cases)
+        orient[:] = np.nan  # orientation 1, no reference
+        orient[0] = 1.0
+        lam = (n_motion - 1) // 2  # y = (v, lambda, ...), v of n = (n_motion - 1) / 2 coordinates
+        for k in range(cases.size):
+            i = cases[k]
+            fc, ctl, geo = force_controlled[k], control_rows[k], geometry[i]
+            set_state(parameters[i], geo, secondary_state[k])
+            converged[k] = True
+            if projected:
+                converged[k] = project(y[i], fc, ctl, law, parameters[i], geo, newton_tol, newton_max_iter, ev)
+            rhs(y[i], fc, ctl, orient, law, parameters[i], geo, dy, ev, aux)
+            rates[k] = dy[lam]

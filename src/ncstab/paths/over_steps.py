@@ -25,7 +25,7 @@ for laws with a total form:
   equilibrium (the stage's Newton projection).  It is kept only if it
   crossed a simple bifurcation point: the projection converged, the
   cofactor vector at its end is reversed (the tangent there was flipped to
-  continue the reference, :func:`~ncstab.paths.tangent_field.path_tangent`)
+  continue the reference, :mod:`~ncstab.paths.tangent_field`)
   and the continued tangent makes an angle under ``OVER_ALIGNMENT`` with the
   one it left (its cosine above 0.9: the branch followed, not the crossing
   one).  Otherwise nothing is kept (no state, no counter) and a regular

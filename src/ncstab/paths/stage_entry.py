@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ncstab.paths.programme import BRANCH_DIMENSION, CURRENT, CycleStage, Stage
-from ncstab.paths.rhs import evaluate_at, tangent_at
+from ncstab.paths.rhs import evaluate_at
 from ncstab.paths.tangent_field import StageArrays
 
 if TYPE_CHECKING:
@@ -85,7 +85,8 @@ def _set_up_stage(stepper: BatchStepper, index: np.ndarray, k: int) -> tuple[np.
         lam, bad, reasons = _cycle_stage(stepper, stage, k, index, current, u, arrays)
     stepper.y[index, layout.lam] = lam
     zero_length = (arrays.target_sign == 0) & ~bad
-    dlam = tangent_at(evaluation, arrays, lam).dlam
+    # dlambda/ds of the unoriented tangent, from the loop (the cofactor vector's own sign)
+    dlam, _ = stepper.compiled.settle(stepper, index, arrays, projected=False)
     singular = ~(np.abs(dlam) > 0) & ~bad & ~zero_length
     reasons[singular] = (
         f"stage {k + 1}: the control is singular at the stage start (det of the "

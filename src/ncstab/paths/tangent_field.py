@@ -1,4 +1,4 @@
-"""The tangent of a loading path: null space of the constrained rate system.
+"""The tangent of a loading path (null space of the constrained rate system), and each case's stage.
 
 Along a stage every dof i has either its displacement or its force prescribed:
 ``P du + Q dF = g'(lambda) dlambda`` with P, Q complementary diagonal selections
@@ -35,10 +35,13 @@ through zero and turns against the motion (a simple bifurcation point: it is
 the bordered determinant det [[M, -g'], [t^T]] of a continuation code), and
 never at a limit point, where the cofactor vector turns smoothly with the path.
 
-The compiled loop orients each step's tangents so and computes the branch
-test (``tangent_at`` and ``branch_test`` in its model parts,
-:mod:`ncstab.paths.compiled`).  :func:`path_tangent` is the batched tangent
-that stage entry reads once per stage (:mod:`ncstab.paths.stage_entry`).
+The compiled loop computes the tangent, orients it so and computes the branch
+test (``tangent`` or ``tangent_at`` and ``branch_size`` in its model parts,
+:mod:`ncstab.paths.compiled`: the 2 x 2 closed form of the reduced diamond, or
+:func:`ncstab.paths.cofactor.cofactor_vector` for any n); stage entry reads the
+unoriented rate of lambda from it (``settle``).  This module holds each case's
+stage (:class:`StageArrays`) and the control matrix and rate that branch
+switching differentiates (:mod:`ncstab.paths.branch_switching`).
 """
 
 from __future__ import annotations
@@ -47,9 +50,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from ncstab.paths.cofactor import cofactor_vectors
-
-__all__ = ["PathTangent", "StageArrays", "control_matrix", "effective_rate", "path_tangent"]
+__all__ = ["StageArrays", "control_matrix", "effective_rate"]
 
 
 @dataclass
@@ -193,102 +194,3 @@ def effective_rate(stage: StageArrays, dg: np.ndarray, dF_dload: np.ndarray | No
     if dF_dload is None:
         return dg
     return dg - np.where(stage.force_controlled, dF_dload, 0.0) * stage.load_slope[:, None]
-
-
-@dataclass
-class PathTangent:
-    """The unit tangent of a path at a batch of states (see :func:`path_tangent`).
-
-    Attributes
-    ----------
-    dv, du, dF
-        ``(B, n)`` state coordinates, displacements and forces along the path.
-    dlam
-        ``(B,)`` the driven parameter's rate.
-    det_m
-        ``(B,)`` det M, the mixed-control determinant (unscaled).
-    """
-
-    dv: np.ndarray
-    du: np.ndarray
-    dF: np.ndarray
-    dlam: np.ndarray
-    det_m: np.ndarray
-
-    def motion(self) -> np.ndarray:
-        """``(B, 2n + 1)``: (du, dF, dlambda), the vector the orientation continues."""
-        return np.concatenate([self.du, self.dF, self.dlam[:, None]], axis=-1)
-
-
-def path_tangent(
-    du_dv: np.ndarray,
-    df_dv: np.ndarray,
-    stage: StageArrays,
-    lam: np.ndarray,
-    dF_dload: np.ndarray | None = None,
-) -> PathTangent:
-    """Unit tangent of the path in state coordinates, and det M (not oriented: the
-    cofactor vector's own sign).
-
-    Normalised so that |du|^2 + |dF|^2 + dlambda^2 = 1 with du = (du/dv) dv and
-    dF = (dF/dv) dv + dR/dP dP (the load's term where the system has one,
-    ``dF_dload`` = dR/dP ``(B, n)``).  NaN where the null space is not
-    one-dimensional (adj(M) g' = 0 and det M = 0).
-    """
-    _, dg = stage.control_path(lam)
-    dg = effective_rate(stage, dg, dF_dload)
-    load_rate = None if dF_dload is None else dF_dload * stage.load_slope[:, None]
-    if dg.shape[-1] == 2:
-        return _path_tangent_2(du_dv, df_dv, dg, stage.force_controlled, load_rate)
-    else:
-        matrix = control_matrix(du_dv, df_dv, stage.force_controlled)
-        dv, det_m = cofactor_vectors(matrix, dg)  # (adj(M) g', det M) from one QR decomposition
-        dlam = det_m
-        du = (du_dv @ dv[:, :, None])[:, :, 0]
-        df = (df_dv @ dv[:, :, None])[:, :, 0]
-        if load_rate is not None:
-            df = df + load_rate * dlam[:, None]
-        norm = np.sqrt(np.sum(du**2, -1) + np.sum(df**2, -1) + dlam**2)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            scale = np.where(norm > 0, 1.0 / norm, np.nan)
-    return PathTangent(dv * scale[:, None], du * scale[:, None], df * scale[:, None], dlam * scale, det_m)
-
-
-def _path_tangent_2(
-    du_dv: np.ndarray,
-    df_dv: np.ndarray,
-    dg: np.ndarray,
-    force_controlled: np.ndarray,
-    load_rate: np.ndarray | None = None,
-) -> PathTangent:
-    """:func:`path_tangent` for n = 2 in closed form: the adjugate, det M and the
-    products with du/dv and dF/dv written out entry by entry (no (B, 2, 2)
-    temporaries, no matmul)."""
-    fc0, fc1 = force_controlled[:, 0], force_controlled[:, 1]
-    m00 = np.where(fc0, df_dv[:, 0, 0], du_dv[:, 0, 0])
-    m01 = np.where(fc0, df_dv[:, 0, 1], du_dv[:, 0, 1])
-    m10 = np.where(fc1, df_dv[:, 1, 0], du_dv[:, 1, 0])
-    m11 = np.where(fc1, df_dv[:, 1, 1], du_dv[:, 1, 1])
-    det_m = m00 * m11 - m01 * m10
-    g0, g1 = dg[:, 0], dg[:, 1]
-    dv = np.empty(dg.shape)
-    dv[:, 0] = m11 * g0 - m01 * g1
-    dv[:, 1] = m00 * g1 - m10 * g0
-    dv0, dv1 = dv[:, 0], dv[:, 1]
-    du = np.empty(dg.shape)
-    du[:, 0] = du_dv[:, 0, 0] * dv0 + du_dv[:, 0, 1] * dv1
-    du[:, 1] = du_dv[:, 1, 0] * dv0 + du_dv[:, 1, 1] * dv1
-    df = np.empty(dg.shape)
-    df[:, 0] = df_dv[:, 0, 0] * dv0 + df_dv[:, 0, 1] * dv1
-    df[:, 1] = df_dv[:, 1, 0] * dv0 + df_dv[:, 1, 1] * dv1
-    if load_rate is not None:  # dF = K du + dR/dP dP, dP = P_slope dlambda
-        df += load_rate * det_m[:, None]
-    du0, du1 = du[:, 0], du[:, 1]
-    df0, df1 = df[:, 0], df[:, 1]
-    norm = np.sqrt((du0 * du0 + du1 * du1) + (df0 * df0 + df1 * df1) + det_m * det_m)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        scale = np.where(norm > 0, 1.0 / norm, np.nan)
-    dv *= scale[:, None]
-    du *= scale[:, None]
-    df *= scale[:, None]
-    return PathTangent(dv, du, df, det_m * scale, det_m)
