@@ -32,9 +32,7 @@ import numpy as np
 from ncstab.paths.rhs import StateLayout, evaluate_at, work_forces
 from ncstab.paths.tangent_field import StageArrays, control_matrix, effective_rate
 
-__all__ = [
-    "DERIVATIVE_STEP", "LEAVING_STEP", "bifurcating_direction", "branch_motion", "leave_along_branch", "switch_branch",
-]
+__all__ = ["DERIVATIVE_STEP", "LEAVING_STEP", "bifurcating_direction", "branch_motion", "leave_along_branch"]
 
 #: Step of the central differences for the second derivatives of G.
 DERIVATIVE_STEP = 1e-5
@@ -126,34 +124,22 @@ def _shift_work(batch: Any, stage: StageArrays, y: np.ndarray, moved: np.ndarray
     return batch.work_factor * 0.5 * np.sum(forces * du, axis=-1)
 
 
-def switch_branch(
-    batch: Any,
-    stage: StageArrays,
-    y: np.ndarray,
-    incoming: np.ndarray,
-    sense: np.ndarray,
-    layout: StateLayout,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Leave the bifurcation points ``y`` along the bifurcating branch, way ``sense`` (+-1).
-
-    Returns the new states (a step of :data:`LEAVING_STEP` along the branch, its work
-    added; for a law with a total form the caller projects them back onto equilibrium,
-    :meth:`ncstab.paths.compiled_stages.CompiledStages.settle`) and the direction
-    taken ``(B, n + 1)`` in (v, lambda).
-    """
-    direction = sense[:, None] * bifurcating_direction(batch, stage, y, incoming, layout)
-    moved = _shifted(y, direction, LEAVING_STEP, layout)
-    moved[:, layout.work] += _shift_work(batch, stage, y, moved, layout)
-    return moved, direction
-
-
 def leave_along_branch(
     batch: Any, stage: StageArrays, y: np.ndarray, incoming: np.ndarray, layout: StateLayout
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Cases at simple bifurcation points ``y`` whose stage switches branch leave the way
-    ``stage.switch`` (+-1) says (:func:`switch_branch`): their new states (not yet
-    projected) and the direction taken."""
-    return switch_branch(batch, stage, y, incoming, stage.switch.astype(float), layout)
+    """Cases at simple bifurcation points ``y`` (reached along ``incoming``) whose stage
+    switches branch leave along the bifurcating branch, the way ``stage.switch`` (+-1)
+    says.
+
+    Returns the new states (a step of :data:`LEAVING_STEP` along the branch, its work
+    added; for a law with a total form the caller projects them back onto equilibrium,
+    :meth:`ncstab.paths.compiled_stages.CompiledStages.settle`) and the direction taken
+    ``(B, n + 1)`` in (v, lambda).
+    """
+    direction = stage.switch.astype(float)[:, None] * bifurcating_direction(batch, stage, y, incoming, layout)
+    moved = _shifted(y, direction, LEAVING_STEP, layout)
+    moved[:, layout.work] += _shift_work(batch, stage, y, moved, layout)
+    return moved, direction
 
 
 def branch_motion(

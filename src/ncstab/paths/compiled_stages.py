@@ -131,23 +131,19 @@ class CompiledStages:
             evaluation = evaluate_at(stepper.batch.take(cycling), stages.take(cycling), stepper.y[cycling], stepper.layout)
             stepper.turns.start(cycling, stepper.y[cycling, stepper.layout.work], evaluation)
 
-    def settle(
-        self, stepper: BatchStepper, cases: np.ndarray, stage: Any, projected: bool
-    ) -> tuple[np.ndarray, np.ndarray]:
+    def settle(self, stepper: BatchStepper, cases: np.ndarray, stage: Any, projected: bool) -> np.ndarray:
         """The loop's ``settle`` (:mod:`ncstab.paths.loop_start`) for cases ``cases`` in
         ``stage`` (their stage arrays, row k for case ``cases[k]``): where ``projected``,
         their states ``stepper.y`` projected onto equilibrium in place by the loop's Newton
-        projection; dlambda/ds of the unoriented path tangent there, and whether each
-        projection converged."""
+        projection; dlambda/ds of the unoriented path tangent there."""
         rates = np.full(cases.size, np.nan)
-        converged = np.ones(cases.size, dtype=bool)
         options = stepper.options
         self.settler(
             cases.astype(np.int64), stepper.y, np.ascontiguousarray(stage.force_controlled), self.control_rows(stage),
             np.ascontiguousarray(stage.secondary_state, dtype=np.int64), self.law, self.parameters, self.geometry,
-            projected, options.newton_tol, options.newton_max_iter, rates, converged,
+            projected, options.newton_tol, options.newton_max_iter, rates,
         )
-        return rates, converged
+        return rates
 
     def _store_start(self, stepper: BatchStepper, cases: np.ndarray) -> None:
         """dy/ds and the indicators at the states of ``cases``, and the states stored (the

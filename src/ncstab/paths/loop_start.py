@@ -65,11 +65,12 @@ def start_part(
 
     @numba.njit(cache=False, error_model="numpy")
     def settle(cases, y, force_controlled, control_rows, secondary_state, law, parameters, geometry, projected,
-               newton_tol, newton_max_iter, rates, converged):
+               newton_tol, newton_max_iter, rates):
         """Cases ``cases`` (row k of the stage arrays is case ``cases[k]``; ``parameters``,
         ``geometry`` and ``y`` are the batch's): where ``projected``, their states are
         first projected onto equilibrium under the stage's control (the loop's Newton
-        projection, in place in ``y``; ``converged[k]`` says whether it converged); then
+        projection, in place in ``y``; where it does not converge, the loop's next step
+        fails or brings the state back); then
         ``rates[k]`` is dlambda/ds of the path tangent there, not oriented (the cofactor
         vector's own sign: stage entry orients the stage by it, and a control that is
         singular there gives 0 or NaN)."""
@@ -83,8 +84,7 @@ def start_part(
             i = cases[k]
             fc, ctl, geo = force_controlled[k], control_rows[k], geometry[i]
             set_state(parameters[i], geo, secondary_state[k])
-            converged[k] = True
             if projected:
-                converged[k] = project(y[i], fc, ctl, law, parameters[i], geo, newton_tol, newton_max_iter, ev)
+                project(y[i], fc, ctl, law, parameters[i], geo, newton_tol, newton_max_iter, ev)
             rhs(y[i], fc, ctl, orient, law, parameters[i], geo, dy, ev, aux)
             rates[k] = dy[lam]

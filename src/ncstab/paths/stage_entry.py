@@ -86,7 +86,7 @@ def _set_up_stage(stepper: BatchStepper, index: np.ndarray, k: int) -> tuple[np.
     stepper.y[index, layout.lam] = lam
     zero_length = (arrays.target_sign == 0) & ~bad
     # dlambda/ds of the unoriented tangent, from the loop (the cofactor vector's own sign)
-    dlam, _ = stepper.compiled.settle(stepper, index, arrays, projected=False)
+    dlam = stepper.compiled.settle(stepper, index, arrays, projected=False)
     singular = ~(np.abs(dlam) > 0) & ~bad & ~zero_length
     reasons[singular] = (
         f"stage {k + 1}: the control is singular at the stage start (det of the "
