@@ -58,10 +58,6 @@ class Evaluation:
         ``(B, m, k)`` and stored forces ``(B, m, k_f)``, where the batch gives
         them (general models), else ``None`` (the diamond: ``q``, ``normal``,
         ``tangential`` say it all).
-    domain_code
-        ``(B,)`` int, where a model kernel gave it (general models): -1 inside the
-        domain, else 1 + the index of the first condition violated
-        (:class:`ncstab.operators.model_kernel_source.KernelLayout`).
     """
 
     q: np.ndarray
@@ -79,7 +75,6 @@ class Evaluation:
     interactions: tuple[tuple[np.ndarray, np.ndarray], ...] | None = None
     mass: np.ndarray | None = None
     damping: np.ndarray | None = None
-    domain_code: np.ndarray | None = None
 
     def take(self, index: np.ndarray) -> "Evaluation":
         return Evaluation(*(_take_or_none(getattr(self, f.name), index) for f in fields(self)))

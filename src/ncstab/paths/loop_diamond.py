@@ -104,10 +104,6 @@ def access_part(
         # the contact-state bits, where the law's kernel reads them
         p[state_slot] = secondary
 
-    @hot
-    def lam_of(y):
-        return y[2]
-
     @njit
     def tangent_at(y, fc, ctl, orient, ev, aux, geo):
         # the tangent at an evaluated state (ev), into aux

@@ -252,5 +252,4 @@ class ModelBatch:
             interactions=interactions,
             mass=block(layout.mass, n, n) if layout.inertia[0] else None,
             damping=block(layout.damping, n, n) if layout.inertia[1] else None,
-            domain_code=out[:, layout.domain].astype(int),
         )
