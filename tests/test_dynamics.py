@@ -668,3 +668,22 @@ def test_solve_mass_with_the_identity_equals_lapack_bit_for_bit():
     mass = identity * 2.0
     product, _ = solve_mass(mass, stiffness)
     np.testing.assert_allclose(product[finite], stiffness[finite] / 2.0, rtol=1e-15)
+
+
+def test_each_case_s_growth_rate_is_its_own_whatever_the_batch(rng):
+    """flutter_indicator gives an undamped case the same value, bit for bit, alone or
+    in a batch with damped cases (each case by its own kind: the Dataset computes it
+    in blocks of cases, a chunked run in chunks)."""
+    n, size = 2, 12
+    mass = np.eye(n) + 0.1 * rng.normal(size=(size, n, n))
+    mass = mass @ np.swapaxes(mass, -1, -2)
+    stiffness = rng.normal(size=(size, n, n))
+    damping = 0.2 * rng.normal(size=(size, n, n))
+    damping[::3] = 0.0  # undamped cases among damped ones
+    batch = flutter_indicator(mass, damping, stiffness)
+    alone = np.array([flutter_indicator(mass[k], damping[k], stiffness[k]) for k in range(size)])
+    np.testing.assert_array_equal(batch, alone)
+    undamped = flutter_indicator(mass[::3], None, stiffness[::3])
+    np.testing.assert_array_equal(batch[::3], undamped)
+    spectrum = dynamic_spectrum(mass, damping, stiffness).real.max(axis=-1)
+    np.testing.assert_allclose(batch, spectrum, rtol=0, atol=1e-12)  # the same roots, either way

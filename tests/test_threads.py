@@ -113,22 +113,28 @@ def test_ncstab_run_with_a_bad_thread_count_exits_2_naming_the_option(tmp_path, 
 
 
 @pytest.mark.skipif(thread_limit() < 2, reason="numba runs one thread here (NUMBA_NUM_THREADS or one core)")
-def test_the_side_thread_is_another_thread_only_where_two_are_allowed():
-    """The Dataset's second thread (side_thread): work runs in the calling thread under
-    one thread, on another under two, and gives the same result either way."""
+def test_in_shares_runs_every_share_once_inline_on_one_thread_and_beside_it_on_two():
+    """in_shares (the recorder's growth, the Dataset's indicator blocks): every
+    non-empty share once, in the calling thread under one thread, on other threads
+    under two; empty shares are skipped."""
     import threading
 
-    from ncstab.paths.threads import side_thread
+    from ncstab.paths.threads import in_shares
 
-    def where(value):
-        return threading.get_ident(), value * 2
+    for threads in (1, 2):
+        seen = []
 
-    with using_threads(1), side_thread() as pool:
-        one = pool.submit(where, 21).result()
-    with using_threads(2), side_thread() as pool:
-        two = pool.submit(where, 21).result()
-    assert one == (threading.get_ident(), 42)
-    assert two[0] != threading.get_ident() and two[1] == 42
+        def work(rows, seen=seen):
+            seen.append((rows.start, rows.stop, threading.get_ident()))
+
+        with using_threads(threads):
+            in_shares(work, [0, 3, 3, 7, 10], "test")
+        assert sorted((a, b) for a, b, _ in seen) == [(0, 3), (3, 7), (7, 10)]
+        idents = {ident for _, _, ident in seen}
+        if threads == 1:
+            assert idents == {threading.get_ident()}
+        else:
+            assert threading.get_ident() not in idents
 
 
 def test_the_recorder_grows_the_same_bytes_on_one_thread_and_on_two():

@@ -104,8 +104,19 @@ def flutter_indicator(
     """
     mass, damping, stiffness = as_dynamic_matrices(mass, damping, stiffness)
     undamped = _undamped(damping, mass.shape[:-2])
-    if not undamped.all():
-        return dynamic_spectrum(mass, damping, stiffness).real.max(axis=-1)
+    if undamped.all():
+        return _undamped_growth(mass, stiffness)
+    # each case by its own kind, so that its value does not depend on the others in the batch
+    growth = np.empty(mass.shape[:-2])
+    damped = ~undamped
+    growth[damped] = dynamic_spectrum(mass[damped], damping[damped], stiffness[damped]).real.max(axis=-1)
+    growth[undamped] = _undamped_growth(mass[undamped], stiffness[undamped])
+    return growth
+
+
+def _undamped_growth(mass: np.ndarray, stiffness: np.ndarray) -> np.ndarray:
+    """max Re s of M s^2 + K (C = 0): the largest |Re sqrt(mu)| over the n eigenvalues
+    mu of -M^-1 K (:func:`flutter_indicator`), NaN where M is singular."""
     product, valid = solve_mass(mass, stiffness)
     if mass.shape[-1] == 2:
         growth = _undamped_growth_2(product)

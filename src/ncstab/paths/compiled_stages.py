@@ -153,15 +153,15 @@ class CompiledStages:
         recorder.reserve(int(recorder.count[cases].max()) + 1 if cases.size else 0)
         stages = stepper.stages
         count_before = recorder.count[cases].copy()
-        self.starter(
-            cases.astype(np.int64), stepper.y, stepper.derivative, stepper.indicators, stepper.arclength,
+        self._run_shared(self.starter, cases.astype(np.int64), (
+            stepper.y, stepper.derivative, stepper.indicators, stepper.arclength,
             stages.force_controlled, self.control_rows(stages), stages.lam_end, stages.target_sign, stages.orientation,
             stages.reference, np.ascontiguousarray(stages.secondary_state, dtype=np.int64), stages.cycles_done,
             self.law, self.parameters, self.geometry,
             stepper.stage_index[cases[0]] if cases.size else 0,
             self.recorded(stepper), recorder.count,
             stepper.step_size, stepper.probe_step, stepper.options.rtol, stepper.options.atol,
-        )
+        ))
         self.after_call(stepper, cases, count_before)
 
     def run(self, stepper: BatchStepper) -> None:
@@ -211,7 +211,7 @@ class CompiledStages:
                     stepper.options.min_step, stepper.options.max_step, stepper.options.max_steps,
                     stepper.options.event_tol, stepper.options.stored_spacing, stepper.options.max_pieces,
                 )
-                self._run_shared(cases.astype(np.int64), arguments)
+                self._run_shared(self.runner, cases.astype(np.int64), arguments)
                 self.after_call(stepper, cases, count_before)
                 self._close_turns(stepper, int(k), turn_closed, turn_values)
                 self._reserve_for_the_rest(stepper, cases, lam_before, count_before)
@@ -271,8 +271,9 @@ class CompiledStages:
             stepper.turns.close(cases, np.full(cases.size, k), np.full(cases.size, turn), row[:, 0], where)
             closed[cases, first + turn] = False
 
-    def _run_shared(self, cases: np.ndarray, arguments: tuple) -> None:
-        """Run ``cases`` through the compiled loop, in shares on
+    def _run_shared(self, function: Any, cases: np.ndarray, arguments: tuple) -> None:
+        """Run ``cases`` through ``function`` (the compiled loop's ``run_cases`` or
+        ``start``: ``function(cases, *arguments)``, each case on its own rows), in shares on
         :func:`~ncstab.paths.threads.thread_count` threads: blocks of
         :data:`SHARE_BLOCK` consecutive cases dealt out in turn (costly cases of a
         sweep sit side by side, so dealing shares them out; whole blocks keep
@@ -281,13 +282,13 @@ class CompiledStages:
         for bit those of one thread."""
         threads = max(1, min(thread_count(), -(-cases.size // SHARE_BLOCK)))  # a block at least each
         if threads == 1:
-            self.runner(cases, *arguments)
+            function(cases, *arguments)
             return
         dealt = np.arange(cases.size) // SHARE_BLOCK % threads
         with ThreadPoolExecutor(threads, thread_name_prefix="ncstab-stepper") as pool:
             # contiguous shares: one compiled signature whatever the count
             shares = [
-                pool.submit(self.runner, np.ascontiguousarray(cases[dealt == t]), *arguments) for t in range(threads)
+                pool.submit(function, np.ascontiguousarray(cases[dealt == t]), *arguments) for t in range(threads)
             ]
             for share in shares:
                 share.result()

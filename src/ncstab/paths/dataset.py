@@ -16,10 +16,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 import ncstab
-from ncstab.operators.indicators import det_K, hill_eigenvalue, skew_part, symmetric_part
-from ncstab.paths.dataset_dynamics import dynamics_at_states, flutter_variable, stored_spectrum
+from ncstab.paths.dataset_dynamics import dynamics_at_states, stored_spectrum
+from ncstab.paths.dataset_indicators import state_indicators
 from ncstab.paths.programme import EVENTS
-from ncstab.paths.threads import side_thread
 from ncstab.paths.variables import (
     CASE_DIMENSION,
     EVENT_FIELDS,
@@ -87,23 +86,11 @@ def path_dataset(result: "PathResult", directions: int | None = None, spectrum: 
         array = arrays[0][None] if len(arrays) == 1 else np.stack(arrays)  # one law: a view, not a copy
         return array.reshape(shape + array.shape[2:])
 
-    # The arrays the indicators are computed from, contiguous: one law's are views of
-    # the recorder, whose rows hold room for more states than were stored, and numpy's
-    # loops over such strides cost more than the copy (65,536 cases: the second-order
-    # work 0.50 s on the view, 0.23 s on a copy made in 0.07 s).
-    K = np.ascontiguousarray(stacked("K"))
-    u = np.ascontiguousarray(stacked("u"))
+    # The indicators at every stored state, in blocks of cases on the study's threads
+    # (dataset_indicators), with K and u as contiguous copies: one law's arrays are
+    # views of the recorder, whose rows hold room for more states than were stored.
     stage = stacked("stage")
-    # The indicators at every stored state, in numpy: the flutter variable (with
-    # inertia, the dynamic spectrum: the largest share) and the mixed control on a
-    # second thread where the study may use two (numpy releases the GIL in its
-    # loops), the rest here; shares of about equal time (65,536 cases: 1.1 s and 1.3 s).
-    with side_thread() as pool:
-        flutter = pool.submit(flutter_variable, result, u, K)
-        mixed = pool.submit(result.mixed_control, K, stage)
-        d2w = _normalised_work(K, np.ascontiguousarray(stacked("du")))
-        K_sym, K_skew, det, hill = symmetric_part(K), skew_part(K), det_K(K), hill_eigenvalue(K)
-        flutter, mixed = flutter.result(), mixed.result()
+    K, u, indicators = state_indicators(result, stacked("K"), stacked("u"), stacked("du"), stage)
     members = _members(result)
 
     step_dims = [*sweep_dims, "step"]
@@ -116,13 +103,8 @@ def path_dataset(result: "PathResult", directions: int | None = None, spectrum: 
         "lam": (step_dims, stacked("lam")),
         "work": (step_dims, stacked("work")),
         "K": (step_dims + ["i", "j"], K),
-        "K_sym": (step_dims + ["i", "j"], K_sym),
-        "K_skew": (step_dims + ["i", "j"], K_skew),
-        "det_K": (step_dims, det),
-        "hill": (step_dims, hill),
-        "d2W": (step_dims, d2w),
-        "flutter": (step_dims, flutter),
-        "mixed_control": (step_dims, mixed),
+        **{name: (step_dims + ["i", "j"], indicators[name]) for name in ("K_sym", "K_skew")},
+        **{name: (step_dims, indicators[name]) for name in ("det_K", "hill", "d2W", "flutter", "mixed_control")},
         "n_steps": (sweep_dims, np.stack([r.n_steps for r in result.results]).reshape(shape).astype(np.int32)),
         "status": (sweep_dims, result.status.astype(str)),
         "message": (sweep_dims, result.message.astype(str)),
@@ -230,13 +212,6 @@ def event_variable_attributes(event: str, field: str) -> dict[str, str]:
             VARIABLES[field][0], f"{field} at {{event}}", f"{VARIABLES[field][1]} at the first {{event}}"
         )
     return {"units": units, "long_name": long_name.format(event=event), "description": description.format(event=event)}
-
-
-def _normalised_work(K: np.ndarray, du: np.ndarray) -> np.ndarray:
-    """d2W along the path, du . K du / (|K du| |du|) (the cosine between dF and du)."""
-    dF = np.einsum("...ij,...j->...i", K, du)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.einsum("...i,...i->...", dF, du) / (np.linalg.norm(dF, axis=-1) * np.linalg.norm(du, axis=-1))
 
 
 def _coordinates(result: "PathResult", length: int, directions: int | None, n_cycles: int) -> dict:

@@ -19,7 +19,7 @@ from ncstab.operators.indicators import flutter_discriminant
 if TYPE_CHECKING:  # pragma: no cover
     from ncstab.paths.result import PathResult
 
-__all__ = ["case_parameters", "dynamics_at_states", "flutter_variable", "stored_spectrum"]
+__all__ = ["case_parameters", "dynamics_at_states", "flutter_variable", "state_dynamics", "stored_spectrum"]
 
 
 def case_parameters(result: "PathResult", extra: tuple[int, ...]) -> tuple[np.ndarray, ...]:
@@ -38,19 +38,30 @@ def case_parameters(result: "PathResult", extra: tuple[int, ...]) -> tuple[np.nd
 def dynamics_at_states(result: "PathResult", u: np.ndarray, K: np.ndarray, critical: bool = False) -> np.ndarray:
     """max Re s (or, ``critical``, the critical frequency) of M(u) s^2 + C s + K at
     states ``u`` ``(law, *sweep, *extra, n)`` with their K, NaN where K is."""
+    return state_dynamics(result, u, K, case_parameters(result, u.shape[len(result.shape):-1]), critical)
+
+
+def state_dynamics(
+    result: "PathResult", u: np.ndarray, K: np.ndarray, parameters: tuple[np.ndarray, ...], critical: bool = False
+) -> np.ndarray:
+    """max Re s (or, ``critical``, the critical frequency) of M(u) s^2 + C s + K at
+    states ``u`` ``(..., n)`` with their K ``(..., n, n)``, NaN where K is.
+
+    ``parameters``: the system's parameters, one flat array each with a value per
+    state in ``u``'s order (:func:`case_parameters`).  Each state's value depends on
+    that state alone (:func:`ncstab.operators.dynamics.flutter_indicator`)."""
     from ncstab.operators.dynamics import critical_frequency, flutter_indicator
     from ncstab.systems.compile import compile_system
 
     compiled = compile_system(result.model.definition)
     n = u.shape[-1]
-    extra = u.shape[len(result.shape):-1]
     flat_u, flat_K = u.reshape(-1, n), K.reshape(-1, n, n)
     finite = np.isfinite(flat_K).all(axis=(-2, -1)) & np.isfinite(flat_u).all(axis=-1)
     out = np.full(flat_u.shape[0], np.nan)
     if finite.any():
-        parameters = tuple(p[finite] for p in case_parameters(result, extra))
-        mass = compiled.mass(flat_u[finite], parameters)
-        damping = compiled.damping(flat_u[finite], parameters)
+        values = tuple(p[finite] for p in parameters)
+        mass = compiled.mass(flat_u[finite], values)
+        damping = compiled.damping(flat_u[finite], values)
         function = critical_frequency if critical else flutter_indicator
         with np.errstate(invalid="ignore"):
             out[finite] = function(mass, damping, flat_K[finite])
@@ -75,9 +86,12 @@ def stored_spectrum(result: "PathResult", u: np.ndarray, K: np.ndarray) -> np.nd
     return out.reshape(u.shape[:-1] + (2 * n,))
 
 
-def flutter_variable(result: "PathResult", u: np.ndarray, K: np.ndarray) -> np.ndarray:
-    """The ``flutter`` variable: max Re s of the system's dynamics, or the discriminant
-    of K for a system without inertia."""
+def flutter_variable(
+    result: "PathResult", u: np.ndarray, K: np.ndarray, parameters: tuple[np.ndarray, ...]
+) -> np.ndarray:
+    """The ``flutter`` variable at states ``u`` ``(..., n)``: max Re s of the system's
+    dynamics (``parameters``: one value per state, :func:`state_dynamics`), or the
+    discriminant of K for a system without inertia."""
     if result.model.definition.mass is None:
         return flutter_discriminant(K)
-    return dynamics_at_states(result, u, K)
+    return state_dynamics(result, u, K, parameters)

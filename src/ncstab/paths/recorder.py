@@ -14,12 +14,9 @@ before each step (:meth:`Recorder.fits`).
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
-from itertools import pairwise
-
 import numpy as np
 
-from ncstab.paths.threads import thread_count
+from ncstab.paths.threads import in_shares, thread_count
 
 __all__ = ["MIN_STATE_LIMIT", "STORED_SHARE", "Recorder", "state_limit"]
 
@@ -65,7 +62,10 @@ class Recorder:
 
     @staticmethod
     def _blank(shape: tuple[int, ...], dtype: np.dtype) -> np.ndarray:
-        return np.full(shape, -1 if np.dtype(dtype).kind == "i" else np.nan, dtype=dtype)
+        """A blank array (NaN, or -1 for integers), filled like a grown one (:func:`_grow_into`)."""
+        blank = np.empty(shape, dtype=dtype)
+        _grow_into(blank, blank[:, :0], 0)
+        return blank
 
     def add(self, case: np.ndarray, **values: np.ndarray) -> None:
         values = {key: np.asarray(value) for key, value in values.items()}
@@ -160,10 +160,5 @@ def _grow_into(grown: np.ndarray, old: np.ndarray, kept: int) -> None:
         grown[rows, :kept] = old[rows]
         grown[rows, kept:] = blank
 
-    threads = min(thread_count(), grown.shape[0]) if grown.nbytes > PARALLEL_GROWTH_BYTES else 1
-    if threads <= 1:
-        share(slice(None))
-        return
-    bounds = np.linspace(0, grown.shape[0], threads + 1).astype(int)
-    with ThreadPoolExecutor(threads, thread_name_prefix="ncstab-recorder") as pool:
-        list(pool.map(share, [slice(a, b) for a, b in pairwise(bounds)]))
+    threads = thread_count() if grown.nbytes > PARALLEL_GROWTH_BYTES else 1
+    in_shares(share, np.linspace(0, grown.shape[0], threads + 1).astype(int), "recorder")

@@ -13,12 +13,13 @@ count.  The workers of a local dask cluster run one thread each
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable, Iterator
-from concurrent.futures import Executor, Future, ThreadPoolExecutor
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
+from itertools import pairwise
 from typing import Any
 
-__all__ = ["check_thread_count", "side_thread", "thread_count", "thread_limit", "using_threads"]
+__all__ = ["check_thread_count", "in_shares", "thread_count", "thread_limit", "using_threads"]
 
 #: The count chosen by :func:`using_threads`, per calling thread.
 _CHOSEN = threading.local()
@@ -79,17 +80,27 @@ def using_threads(count: int | None) -> Iterator[None]:
         _CHOSEN.count = previous
 
 
-class _Inline(Executor):
-    """An executor that runs what it is given at once, in the calling thread."""
+def in_shares(work: Callable[[slice], Any], bounds: Sequence[int], name: str) -> None:
+    """``work(slice(a, b))`` for each pair of consecutive ``bounds``, on up to
+    :func:`thread_count` threads (in the calling thread where one thread, or one
+    share, is all there is).  The shares must write apart (numpy releases the GIL in
+    its loops, so they run side by side); how they are dealt does not change what
+    each one computes.
 
-    def submit(self, function: Callable[..., Any], /, *args: Any, **kwargs: Any) -> Future:
-        done: Future = Future()
-        done.set_result(function(*args, **kwargs))
-        return done
-
-
-def side_thread() -> Executor:
-    """One more thread for work beside the calling thread's (numpy releases the GIL in
-    its loops), where :func:`thread_count` allows two; else an executor that runs the
-    work at once in the calling thread.  Use it as a context manager."""
-    return ThreadPoolExecutor(1, thread_name_prefix="ncstab-side") if thread_count() > 1 else _Inline()
+    Parameters
+    ----------
+    work
+        Called once per share with its slice.
+    bounds
+        Increasing share boundaries, first to last (``[0, ..., size]``).
+    name
+        The threads' name prefix (``ncstab-<name>``), for profilers and debuggers.
+    """
+    shares = [slice(int(a), int(b)) for a, b in pairwise(bounds) if b > a]
+    threads = min(thread_count(), len(shares))
+    if threads <= 1:
+        for share in shares:
+            work(share)
+        return
+    with ThreadPoolExecutor(threads, thread_name_prefix=f"ncstab-{name}") as pool:
+        list(pool.map(work, shares))
