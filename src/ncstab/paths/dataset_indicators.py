@@ -76,7 +76,7 @@ def state_indicators(
     K_out, u_out = np.empty((cases, length, n, n)), np.empty((cases, length, n))
     out = {name: np.empty((cases, length, n, n)) for name in ("K_sym", "K_skew")}
     out.update({name: np.empty((cases, length)) for name in ("det_K", "hill", "d2W", "flutter", "mixed_control")})
-    parameters = [p.reshape(cases, length) for p in case_parameters(result, (length,))]
+    per_case = case_parameters(result, ())  # one value per (law, case), repeated over a block's states
 
     def block(rows: slice) -> None:
         K_out[rows] = rows_of["K"][rows]
@@ -87,7 +87,7 @@ def state_indicators(
         out["det_K"][rows] = det_K(K_block)
         out["hill"][rows] = hill_eigenvalue(K_block)
         out["d2W"][rows] = normalised_work(K_block, np.ascontiguousarray(rows_of["du"][rows]))
-        out["flutter"][rows] = flutter_variable(result, u_block, K_block, tuple(p[rows].ravel() for p in parameters))
+        out["flutter"][rows] = flutter_variable(result, u_block, K_block, tuple(np.repeat(p[rows], length) for p in per_case))
         out["mixed_control"][rows] = result.mixed_control(K_block, rows_of["stage"][rows])
 
     per_block = max(1, BLOCK_STATES // max(length, 1))
