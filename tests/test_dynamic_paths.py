@@ -93,3 +93,30 @@ def test_hill_s_loss_is_found_where_a_stored_state_lands_on_it():
         landed = np.abs(ds["load"].values.ravel() - 2.0) < 1e-12
         assert landed.any() and np.abs(ds["hill"].values.ravel()[landed]).max() < 1e-13  # the premise
         assert abs(float(ds["hill_loss_load"].item()) - 2.0) <= 1e-10
+
+
+def test_the_stored_spectrum_is_imaginary_below_ziegler_s_load_and_has_a_growing_pair_above():
+    """to_dataset(spectrum=True): the 2n roots at every stored state of the undamped
+    follower path.  They come in pairs +-s (sum 0), are imaginary below the flutter
+    load 7/2 - sqrt 2 and have Re s > 0 above it; their largest real part is the
+    ``flutter`` variable.  Tolerances: 1e-9 on the roots (eigenvalues of a 4 x 4
+    companion with O(1) entries, a double pair near the onset loses half the digits),
+    states within 1e-3 of the onset left out."""
+    ds = follow(SystemSpec("ziegler", load="follower"), None, [{"drive": {"P": 3.0}}], {}).to_dataset(spectrum=True)
+    n = int(ds["n_steps"].item())
+    P = ds["load"].values[0, :n]
+    roots = ds["spectrum_re"].values[0, :n] + 1j * ds["spectrum_im"].values[0, :n]
+    assert roots.shape == (n, 4) and (P < FLUTTER_LOAD - 1e-3).any() and (P > FLUTTER_LOAD + 1e-3).any()
+    np.testing.assert_allclose(roots.sum(axis=-1), 0.0, atol=1e-9)
+    below, above = P < FLUTTER_LOAD - 1e-3, P > FLUTTER_LOAD + 1e-3
+    assert np.abs(roots[below].real).max() < 1e-9
+    assert (roots[above].real.max(axis=-1) > 1e-3).all()
+    np.testing.assert_allclose(roots.real.max(axis=-1), ds["flutter"].values[0, :n], rtol=0, atol=1e-9)
+
+
+def test_a_system_without_inertia_has_no_stored_spectrum():
+    """Hencky's column declares no M: asking for its spectrum is an error that says so."""
+    path = follow(SystemSpec("column", links=2), None, [{"drive": {"P": 0.5}}], {})
+    assert path.model.definition.mass is None
+    with pytest.raises(ValueError, match="'column' declares no inertia"):
+        path.to_dataset(spectrum=True)

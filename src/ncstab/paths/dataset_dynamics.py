@@ -10,6 +10,7 @@ the critical frequency at a flutter onset, or the 2n roots (``spectrum_re``,
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -51,39 +52,40 @@ def state_dynamics(
     state in ``u``'s order (:func:`case_parameters`).  Each state's value depends on
     that state alone (:func:`ncstab.operators.dynamics.flutter_indicator`)."""
     from ncstab.operators.dynamics import critical_frequency, flutter_indicator
-    from ncstab.systems.compile import compile_system
 
-    compiled = compile_system(result.model.definition)
-    n = u.shape[-1]
-    flat_u, flat_K = u.reshape(-1, n), K.reshape(-1, n, n)
-    finite = np.isfinite(flat_K).all(axis=(-2, -1)) & np.isfinite(flat_u).all(axis=-1)
-    out = np.full(flat_u.shape[0], np.nan)
-    if finite.any():
-        values = tuple(p[finite] for p in parameters)
-        mass = compiled.mass(flat_u[finite], values)
-        damping = compiled.damping(flat_u[finite], values)
-        function = critical_frequency if critical else flutter_indicator
-        with np.errstate(invalid="ignore"):
-            out[finite] = function(mass, damping, flat_K[finite])
-    return out.reshape(u.shape[:-1])
+    return _at_finite_states(result, u, K, parameters, critical_frequency if critical else flutter_indicator, ())
 
 
 def stored_spectrum(result: "PathResult", u: np.ndarray, K: np.ndarray) -> np.ndarray:
     """The 2n roots of det(M(u) s^2 + C s + K) at every stored state (NaN padding kept)."""
     from ncstab.operators.dynamics import dynamic_spectrum
+
+    n = u.shape[-1]
+    parameters = case_parameters(result, u.shape[len(result.shape):-1])
+    return _at_finite_states(result, u, K, parameters, dynamic_spectrum, (2 * n,), complex)
+
+
+def _at_finite_states(
+    result: "PathResult", u: np.ndarray, K: np.ndarray, parameters: tuple[np.ndarray, ...],
+    function: Callable[..., np.ndarray], tail: tuple[int, ...], dtype: type = float,
+) -> np.ndarray:
+    """``function(M, C, K)`` ``(..., *tail)`` at the states ``u`` ``(..., n)`` whose u and
+    K are finite, with M(u) and C(u) from the system's compiled matrices and
+    ``parameters`` (one value per state); NaN at the others (padding, failed cases)."""
     from ncstab.systems.compile import compile_system
 
     compiled = compile_system(result.model.definition)
     n = u.shape[-1]
     flat_u, flat_K = u.reshape(-1, n), K.reshape(-1, n, n)
     finite = np.isfinite(flat_K).all(axis=(-2, -1)) & np.isfinite(flat_u).all(axis=-1)
-    out = np.full((flat_u.shape[0], 2 * n), np.nan + 0j)
+    out = np.full((flat_u.shape[0], *tail), np.nan, dtype=dtype)
     if finite.any():
-        parameters = tuple(p[finite] for p in case_parameters(result, u.shape[len(result.shape):-1]))
-        mass = compiled.mass(flat_u[finite], parameters)
-        damping = compiled.damping(flat_u[finite], parameters)
-        out[finite] = dynamic_spectrum(mass, damping, flat_K[finite])
-    return out.reshape(u.shape[:-1] + (2 * n,))
+        values = tuple(p[finite] for p in parameters)
+        mass = compiled.mass(flat_u[finite], values)
+        damping = compiled.damping(flat_u[finite], values)
+        with np.errstate(invalid="ignore"):
+            out[finite] = function(mass, damping, flat_K[finite])
+    return out.reshape(u.shape[:-1] + tail)
 
 
 def flutter_variable(
