@@ -40,10 +40,21 @@ from ncstab.systems.definition import (
     dof_symbols,
 )
 
-__all__ = ["ZIEGLER_LOADS", "column", "ziegler"]
+__all__ = ["COLUMN_REFERENCE", "COLUMN_UNITS", "ZIEGLER_LOADS", "column", "ziegler"]
 
 #: The two loads of Ziegler's pendulum.
 ZIEGLER_LOADS = ("follower", "dead")
+
+#: Units of Hencky's column (lengths in units of the link length a, forces of C/a).
+COLUMN_UNITS = SystemUnits(
+    displacement="1",
+    displacement_description="lateral displacement of each internal joint / a (link length)",
+    force="1",
+    force_description="lateral force at each internal joint / (C/a)",
+    work_description="work of the external forces and of P, in units of C",
+    force_unit="C/a",
+)
+COLUMN_REFERENCE = "Hencky (1921), Eisenbau 11, 437-452; Challamel & Kocsis (2021), Int. J. Non-Linear Mech. 136, 103772"
 
 
 def column(links: int) -> SystemDefinition:
@@ -78,16 +89,9 @@ def column(links: int) -> SystemDefinition:
         families=(springs,),
         load=load,
         domain=tuple(DomainCondition(1 - x**2, f"bar {i + 1} at right angles to the axis") for i, x in enumerate(rise)),
-        units=SystemUnits(
-            displacement="1",
-            displacement_description="lateral displacement of each internal joint / a (link length)",
-            force="1",
-            force_description="lateral force at each internal joint / (C/a)",
-            work_description="work of the external forces and of P, in units of C",
-            force_unit="C/a",
-        ),
+        units=COLUMN_UNITS,
         settings=(("links", n),),
-        reference="Hencky (1921), Eisenbau 11, 437-452; Challamel & Kocsis (2021), Int. J. Non-Linear Mech. 136, 103772",
+        reference=COLUMN_REFERENCE,
     )
 
 

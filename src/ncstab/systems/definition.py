@@ -39,6 +39,7 @@ from ncstab.laws.definition import ParameterSpec
 
 __all__ = [
     "DomainCondition",
+    "FamilyNames",
     "GapDefinition",
     "InteractionFamily",
     "LoadDefinition",
@@ -61,8 +62,35 @@ def dof_symbols(names: tuple[str, ...] | list[str]) -> tuple[sp.Symbol, ...]:
     return tuple(sp.Symbol(name, real=True) for name in names)
 
 
+class FamilyNames:
+    """What every layer reads of a family of members, from its ``kind``, ``members`` and
+    ``member_parameters`` (shared by symbolic and assembled families)."""
+
+    @property
+    def size(self) -> int:
+        return len(self.members)
+
+    @property
+    def dimension(self) -> str:
+        """Name of the members' dimension in a Dataset (``contact``, ``spring``)."""
+        return FAMILY_KINDS[self.kind][0]
+
+    @property
+    def variable_names(self) -> tuple[str, ...]:
+        return FAMILY_KINDS[self.kind][1]
+
+    @property
+    def force_names(self) -> tuple[str, ...]:
+        return FAMILY_KINDS[self.kind][2]
+
+    @property
+    def fixed_parameters(self) -> tuple[str, ...]:
+        """Law parameters set per member by the geometry."""
+        return tuple(name for name, _ in self.member_parameters)
+
+
 @dataclass(frozen=True)
-class InteractionFamily:
+class InteractionFamily(FamilyNames):
     """Members of one kind of interaction, each with its variables q(u).
 
     Attributes
@@ -118,27 +146,6 @@ class InteractionFamily:
         if self.law is not None and self.law.kind != self.kind:
             raise ValueError(f"family {self.name!r} of {self.kind}s cannot take the {self.law.kind} law {self.law.name!r}")
 
-    @property
-    def size(self) -> int:
-        return len(self.members)
-
-    @property
-    def dimension(self) -> str:
-        """Name of the members' dimension in a Dataset (``contact``, ``spring``)."""
-        return FAMILY_KINDS[self.kind][0]
-
-    @property
-    def variable_names(self) -> tuple[str, ...]:
-        return FAMILY_KINDS[self.kind][1]
-
-    @property
-    def force_names(self) -> tuple[str, ...]:
-        return FAMILY_KINDS[self.kind][2]
-
-    @property
-    def fixed_parameters(self) -> tuple[str, ...]:
-        """Law parameters set per member by the geometry."""
-        return tuple(name for name, _ in self.member_parameters)
 
 
 @dataclass(frozen=True)

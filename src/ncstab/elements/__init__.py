@@ -1,0 +1,31 @@
+"""Interaction elements: the kinematics of one kind of member, for arrays of members.
+
+A system assembled from elements (:mod:`ncstab.systems.assembled`) is data:
+per element kind, the members' dof maps and the affine maps from their dofs
+to the quantities their kinematics start from.  This layer computes, for every
+member at once (numpy, no per-member Python), the interaction variables q, their
+Jacobian J = dq/du_e and Hessian H = d2q/du_e2 on the member's own dofs, and
+(:mod:`ncstab.elements.law_response`) each law's response Q, D = dQ/dq and
+internal-variable rates, derived once per law with sympy and then evaluated over
+arrays.  Nothing here is derived per system.
+
+* :mod:`ncstab.elements.branch` -- a granular contact (or a gap) whose branch,
+  in the frame of one of its grains, is affine in the dofs: q = (l, alpha).
+* :mod:`ncstab.elements.bar_spring` -- a rotational spring between two rigid
+  bars whose rise (sine of the bar angle) is linear in the dofs:
+  q = asin(rise_b) - asin(rise_a); and the axial dead load of such bars.
+"""
+
+from ncstab.elements.bar_spring import BarSprings, bar_angles, shortening
+from ncstab.elements.branch import BranchElements, branch_kinematics
+from ncstab.elements.law_response import LawResponse, law_response
+
+__all__ = [
+    "BarSprings",
+    "BranchElements",
+    "LawResponse",
+    "bar_angles",
+    "branch_kinematics",
+    "law_response",
+    "shortening",
+]

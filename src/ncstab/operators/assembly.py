@@ -1,0 +1,198 @@
+"""Assembly of R and K from element arrays: K = sum_e A_e^T K_e A_e, dense or sparse.
+
+For every element family of an :class:`~ncstab.systems.assembled.AssembledSystem`
+(seed Eq. 5, 9, 16 and their derivative, Eq. 30-34 for a contact):
+
+    R = sum_e w J_e^T Q_e - P Q_ext + gap springs,
+    K = dR/du = sum_e w [J_e^T D_e J_e + sum_c Q_ec H_ec] - P dQ_ext/du + gap springs,
+
+with J_e, H_e the members' kinematics on their own dofs
+(:mod:`ncstab.elements`), Q_e, D_e the law's response
+(:func:`ncstab.elements.law_response`), Q_ext the axial load per unit P
+(:func:`ncstab.elements.shortening`), and each closed secondary contact a
+frictionless spring of energy w kappa g^2 / 2 (g = centre distance - 1):
+F += w kappa g grad g, K += w kappa (grad g grad g^T + g hess g).  Element
+matrices are scattered by their dof maps in one vectorised call, into a dense
+array (small n) or a ``scipy.sparse`` CSR matrix (large n), as a finite-element
+code assembles (scikit-fem's ``asm``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sparse
+
+from ncstab.elements import BranchElements, branch_kinematics, law_response, shortening
+from ncstab.systems.assembled import AssembledSystem
+
+__all__ = ["AssembledState", "assemble", "gap_candidates", "gap_elements"]
+
+
+@dataclass
+class AssembledState:
+    """R, K and the members' variables at one state.
+
+    Attributes
+    ----------
+    R : (n,)
+        Internal generalized forces minus the loads.
+    K : (n, n) array or CSR matrix
+        dR/du (load stiffness included).
+    dR_dload : (n,)
+        dR/dP = -Q_ext (zeros without a load).
+    members
+        Per family name: ``q`` (m, k), ``f`` stored forces (m, forces), ``J``
+        (m, k, L), ``C`` rate rows (m, forces, k), ``dofs`` (m, L).
+    gaps : (p,)
+        Distances of the candidate gaps (:func:`gap_candidates`) given.
+    """
+
+    R: np.ndarray
+    K: Any
+    dR_dload: np.ndarray
+    members: dict[str, dict[str, np.ndarray]]
+    gaps: np.ndarray
+
+
+def _scatter(n: int, dofs: np.ndarray, blocks: np.ndarray, dense: bool):
+    """Sum element blocks ``(m, L, L)`` into an n x n matrix by their dof maps ``(m, L)``."""
+    L = dofs.shape[1]
+    rows = np.repeat(dofs, L, axis=1).ravel()
+    cols = np.tile(dofs, (1, L)).ravel()
+    if dense:
+        out = np.zeros(n * n)
+        np.add.at(out, rows * n + cols, blocks.ravel())
+        return out.reshape(n, n)
+    return sparse.csr_matrix((blocks.ravel(), (rows, cols)), shape=(n, n))
+
+
+def _family(kinematics, response, weight, parameters, internal, n, dense):
+    q, J, H = kinematics
+    f = response.stored_forces(q, internal, parameters)
+    Q, D, C = response.response(q, f, parameters)
+    forces = weight * np.einsum("mkl,mk->ml", J, Q)
+    blocks = weight * (np.einsum("mka,mkp,mpb->mab", J, D, J) + np.einsum("mk,mkab->mab", Q, H))
+    return q, f, J, C, forces, blocks
+
+
+def gap_elements(system: AssembledSystem, pairs: np.ndarray) -> BranchElements:
+    """The branches X_a - X_b of grain pairs ``(p, 2)`` in the global frame (their l is the centre distance)."""
+    grains = system.grains
+    assert grains is not None
+    a, b = pairs[:, 0], pairs[:, 1]
+    return BranchElements(
+        names=tuple(f"{x + 1}_{y + 1}" for x, y in pairs),
+        dofs=np.concatenate([grains.dofs[a], grains.dofs[b]], axis=1),
+        matrix=np.concatenate([grains.matrix[a], -grains.matrix[b]], axis=2),
+        origin=grains.origin[a] - grains.origin[b],
+        weight=grains.gap_weight,
+    )
+
+
+def gap_candidates(system: AssembledSystem, u: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs of grains not in contact through an element whose centres are closer than
+    ``1 + reach`` (a k-d tree, not all pairs), and their gaps (distance - 1)."""
+    from scipy.spatial import cKDTree
+
+    grains = system.grains
+    if grains is None:
+        return np.zeros((0, 2), dtype=np.intp), np.zeros(0)
+    X = grains.at(u)
+    pairs = cKDTree(X).query_pairs(1.0 + reach, output_type="ndarray")
+    if pairs.size == 0:
+        return np.zeros((0, 2), dtype=np.intp), np.zeros(0)
+    pairs = np.sort(pairs, axis=1)
+    neighbours = np.sort(grains.neighbours, axis=1)
+    g = len(X)
+    keep = ~np.isin(pairs[:, 0] * g + pairs[:, 1], neighbours[:, 0] * g + neighbours[:, 1])
+    pairs = pairs[keep]
+    pairs = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
+    return pairs, np.linalg.norm(X[pairs[:, 0]] - X[pairs[:, 1]], axis=1) - 1.0
+
+
+def assemble(
+    system: AssembledSystem,
+    law: Any,
+    parameters: dict[str, float],
+    u: np.ndarray,
+    internal: dict[str, np.ndarray],
+    load: float = 0.0,
+    closed: np.ndarray | None = None,
+    kappa: float = 1.0,
+    dense: bool | None = None,
+) -> AssembledState:
+    """R, K and the members' variables of ``system`` at ``u`` (see the module docstring).
+
+    Parameters
+    ----------
+    system
+        The system.
+    law
+        The contact law (for a system with contacts); springs carry their own.
+    parameters
+        The case's law parameters (``gamma``); each contact's ``alpha0`` is the system's.
+    u : (n,)
+        The dofs.
+    internal
+        Per family name, the stored forces ``(m, forces)`` whose columns of internal
+        variables (a rate law's) are used.
+    load
+        The load parameter P.
+    closed : (p, 2) or None
+        Grain pairs whose secondary contact is closed (a spring acts).
+    kappa
+        Stiffness ratio of secondary contacts.
+    dense
+        Dense arrays, or CSR (default: dense up to 64 dofs).
+    """
+    n = system.n_dof
+    dense = n <= 64 if dense is None else dense
+    R = np.zeros(n)
+    dofs_parts, block_parts = [], []
+    members: dict[str, dict[str, np.ndarray]] = {}
+    if system.contacts is not None:
+        elements = system.contacts
+        values = {**parameters, "alpha0": system.contact_alpha0}
+        q, f, J, C, forces, blocks = _family(branch_kinematics(elements, u), law_response(law), elements.weight,
+                                             values, internal["contacts"], n, dense)
+        members["contacts"] = {"q": q, "f": f, "J": J, "C": C, "dofs": elements.dofs}
+        np.add.at(R, elements.dofs, forces)
+        dofs_parts.append(elements.dofs)
+        block_parts.append(blocks)
+    if system.springs is not None:
+        elements = system.springs
+        q, f, J, C, forces, blocks = _family(elements.kinematics(u), law_response(system.spring_law), elements.weight,
+                                             parameters, internal["springs"], n, dense)
+        members["springs"] = {"q": q, "f": f, "J": J, "C": C, "dofs": elements.dofs}
+        np.add.at(R, elements.dofs, forces)
+        dofs_parts.append(elements.dofs)
+        block_parts.append(blocks)
+    dR_dload = np.zeros(n)
+    if system.axial_load is not None:
+        bars = system.axial_load
+        _, vector, stiffness, _ = shortening(bars.rise_dofs, bars.rise_signs, u)
+        np.add.at(dR_dload, bars.rise_dofs, -vector)
+        R += load * dR_dload
+        dofs_parts.append(bars.rise_dofs)
+        block_parts.append(-load * stiffness)
+    gaps = np.zeros(0)
+    if closed is not None and len(closed):
+        springs = gap_elements(system, closed)
+        q, J, H = branch_kinematics(springs, u)
+        g = q[:, 0] - 1.0
+        scale = springs.weight * kappa
+        grad, hess = J[:, 0], H[:, 0]
+        np.add.at(R, springs.dofs, scale * g[:, None] * grad)
+        dofs_parts.append(springs.dofs)
+        block_parts.append(scale * (grad[:, :, None] * grad[:, None, :] + g[:, None, None] * hess))
+        gaps = g
+    K = None
+    for dofs, blocks in zip(dofs_parts, block_parts):
+        part = _scatter(n, dofs, blocks, dense)
+        K = part if K is None else K + part
+    if not dense:
+        K = K.tocsr()
+    return AssembledState(R, K, dR_dload, members, gaps)

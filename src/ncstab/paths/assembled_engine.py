@@ -1,0 +1,183 @@
+"""The sparse engine: one case of an assembled system followed along its programme.
+
+For systems of any size (:class:`~ncstab.systems.assembled.AssembledSystem`):
+pseudo-arclength continuation of G(y) = 0, y = (u_S, lambda / lambda_scale)
+(:mod:`ncstab.paths.assembled_control`), each step an Euler predictor along
+the unit tangent and a Newton corrector on the hyperplane orthogonal to it,
+with the bordered Jacobian [[dG/dy], [t^T]] factorized sparse (SuperLU) or
+dense (Keller 1977; the AUTO-07p and BifurcationKit.jl formulation).  A
+rate-form law's internal variables are integrated over each step by the
+explicit midpoint rule in the increments of its members' variables (a DEM
+code's update, second order in the step).
+
+After every accepted step the indicators of ARCHITECTURE.md's events are
+compared with the step's start (:mod:`ncstab.paths.assembled_events`); a sign
+change is located by bisection on the step length, each trial re-corrected
+onto the path.  det K changes sign at a limit point; where the bordered
+Jacobian's determinant changes sign too the point is a simple bifurcation
+(its tangent space is two-dimensional: the sign of det [[G_y], [t^T]] flips
+along a branch through a branch point and not at a fold).  With
+``at_bifurcation = "switch"`` the path leaves along the bifurcating branch:
+the direction of (phi, 0) -- phi the null vector of K_SS -- orthogonal to the
+incoming tangent (:mod:`ncstab.paths.assembled_path`).  Cost per step: a few sparse factorizations, linear in n for
+banded K.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import scipy.sparse.linalg as splinalg
+
+from ncstab.elements import branch_kinematics, law_response
+from ncstab.operators.assembly import AssembledState, assemble
+from ncstab.paths.assembled_control import StageControl
+from ncstab.paths.options import PathOptions
+from ncstab.systems.assembled import AssembledSystem
+
+__all__ = ["CaseRun", "DomainError", "Point"]
+
+#: Largest change of lambda / lambda_scale in one step (figures resolve the stage).
+MAX_LAMBDA_STEP = 0.02
+#: Largest change of any dof in one step: this part of max(1, |u|_inf) (events and gaps resolved).
+MAX_RELATIVE_MOVE = 0.05
+#: Reach of the neighbour search for secondary contacts (units 2R); steps move a grain less.
+GAP_REACH = 0.5
+
+
+class DomainError(ArithmeticError):
+    """A trial state outside the system's domain (a bar at right angles to the axis)."""
+
+
+@dataclass
+class Point:
+    """A converged state on the path: y, u, load, the assembled state, internal forces, tangent."""
+
+    y: np.ndarray
+    u: np.ndarray
+    load: float
+    state: AssembledState
+    internal: dict[str, np.ndarray]
+    tangent: np.ndarray | None = None
+    indicators: dict[str, float] = field(default_factory=dict)
+
+
+class CaseRun:
+    """Everything one case needs: the system, law, parameter values, options, contacts."""
+
+    def __init__(self, system: AssembledSystem, law: Any, values: dict[str, float], options: PathOptions,
+                 secondary_contacts: str) -> None:
+        self.system, self.law, self.values, self.options = system, law, values, options
+        self.mode = secondary_contacts
+        self.kappa = float(values.get("kappa", 1.0))
+        self.parameters = {k: float(v) for k, v in values.items()}
+        self.n = system.n_dof
+        self.dense = self.n <= 64
+        self.closed = np.zeros((0, 2), dtype=np.intp)
+        self.responses = {}
+        if system.contacts is not None:
+            self.responses["contacts"] = law_response(law)
+        if system.springs is not None:
+            self.responses["springs"] = law_response(system.spring_law)
+
+    # --- states -----------------------------------------------------------------------
+    def zero_internal(self) -> dict[str, np.ndarray]:
+        out = {}
+        if self.system.contacts is not None:
+            out["contacts"] = np.zeros((self.system.contacts.size, self.responses["contacts"].forces))
+        if self.system.springs is not None:
+            out["springs"] = np.zeros((self.system.springs.size, self.responses["springs"].forces))
+        return out
+
+    def _variables(self, family: str, u: np.ndarray) -> np.ndarray:
+        if family == "contacts":
+            return branch_kinematics(self.system.contacts, u, second=False)[0]
+        return self.system.springs.kinematics(u, second=False)[0]
+
+    def advance(self, start: Point | None, u: np.ndarray) -> dict[str, np.ndarray]:
+        """Internal forces at u from the step's start (explicit midpoint in dq), or the start's."""
+        if start is None:
+            return self.zero_internal()
+        out = {}
+        for family, response in self.responses.items():
+            f0 = start.state.members[family]["f"]
+            if not response.internal:
+                out[family] = f0
+                continue
+            q0 = start.state.members[family]["q"]
+            dq = self._variables(family, u) - q0
+            values = {**self.parameters, **({"alpha0": self.system.contact_alpha0} if family == "contacts" else {})}
+            C0 = start.state.members[family]["C"]
+            half = f0 + 0.5 * np.einsum("mfk,mk->mf", C0, dq)
+            _, _, C_mid = response.response(q0 + 0.5 * dq, response.stored_forces(q0 + 0.5 * dq, half, values), values)
+            out[family] = f0 + np.einsum("mfk,mk->mf", C_mid, dq)
+        return out
+
+    def evaluate(self, u: np.ndarray, load: float, internal: dict[str, np.ndarray]) -> AssembledState:
+        bars = self.system.axial_load
+        if bars is not None:
+            rise = np.einsum("bk,bk->b", bars.rise_signs, u[bars.rise_dofs])
+            if np.any(np.abs(rise) >= 1.0):
+                raise DomainError(f"bar {int(np.argmax(np.abs(rise))) + 1} at right angles to the axis")
+        springs = self.system.springs
+        if springs is not None:
+            rises = np.einsum("mkl,ml->mk", springs.rises, u[springs.dofs])
+            if np.any(np.abs(rises) >= 1.0):
+                raise DomainError("a bar at right angles to the axis")
+        return assemble(self.system, self.law, self.parameters, u, internal, load, self.closed, self.kappa, self.dense)
+
+    # --- the bordered system ------------------------------------------------------------
+    def blocks(self, control: StageControl, state: AssembledState, lam: float):
+        """K_SS and the column dG/d(lambda / scale)."""
+        S, D = control.force_dofs, control.displacement_dofs
+        K = state.K
+        if self.dense:
+            K_SS = K[np.ix_(S, S)]
+            column = K[np.ix_(S, D)] @ control.u_slope
+        else:
+            rows = K[S]
+            K_SS = rows[:, S]
+            column = rows[:, D] @ control.u_slope
+        if control.load_stage:
+            column = column + state.dR_dload[S]
+        column = (column - control.f_slope) * control.scale
+        return K_SS, column
+
+    def bordered(self, K_SS, column: np.ndarray, last: np.ndarray):
+        """The bordered Jacobian [[K_SS, column], [last]]: dense, or its parts for block elimination."""
+        if self.dense:
+            return np.block([[K_SS, column[:, None]], [last[None, :]]])
+        return (splinalg.splu(K_SS.tocsc()), K_SS, column, last)
+
+    def solve(self, A, right: np.ndarray) -> np.ndarray:
+        """Solve with the bordered Jacobian.  Sparse: block elimination on K_SS's LU (Keller's
+        bordering algorithm; K_SS keeps its band, the dense border row costs nothing), with one
+        step of iterative refinement."""
+        if self.dense:
+            return np.linalg.solve(A, right)
+        lu, K_SS, column, last = A
+        m = len(column)
+
+        def once(r: np.ndarray) -> np.ndarray:
+            x1 = lu.solve(r[:m])
+            x2 = lu.solve(column)
+            z = (r[m] - last[:m] @ x1) / (last[m] - last[:m] @ x2)
+            return np.append(x1 - z * x2, z)
+
+        x = once(right)
+        residual = right - np.append(K_SS @ x[:m] + column * x[m], last @ x)
+        return x + once(residual)
+
+    def bordered_sign(self, A) -> float:
+        """sign det of the bordered Jacobian (det K_SS times its Schur complement)."""
+        from ncstab.operators.sparse_indicators import lu_determinant
+
+        if self.dense:
+            return float(np.linalg.slogdet(A)[0])
+        lu, _, column, last = A
+        m = len(column)
+        sign, _ = lu_determinant(lu)
+        return float(sign * np.sign(last[m] - last[:m] @ lu.solve(column)))
+

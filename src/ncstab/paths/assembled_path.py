@@ -1,0 +1,299 @@
+"""Stepping, event location and branch switching of the sparse engine (see :mod:`ncstab.paths.assembled_engine`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ncstab.operators.assembly import gap_candidates
+from ncstab.operators.sparse_indicators import critical_eigenvalue, determinant, hill_eigenvalue
+from ncstab.paths.assembled_control import StageControl, stage_control
+from ncstab.paths.assembled_engine import GAP_REACH, MAX_LAMBDA_STEP, MAX_RELATIVE_MOVE, CaseRun, DomainError, Point
+from ncstab.paths.programme import LoadingProgramme
+
+__all__ = ["CaseOutcome", "follow_case"]
+
+@dataclass
+class CaseOutcome:
+    """What one case gives: its stored points (with stage and arclength), events, status."""
+
+    points: list[Point] = field(default_factory=list)
+    stages: list[int] = field(default_factory=list)
+    arclength: list[float] = field(default_factory=list)
+    events: dict[str, dict] = field(default_factory=dict)
+    status: str = "finished"
+    message: str = "every stage reached its target"
+    accepted: int = 0
+    rejected: int = 0
+
+
+class Stepper:
+    """One stage of one case: predictor, corrector, tangent, indicators."""
+
+    def __init__(self, run: CaseRun, control: StageControl) -> None:
+        self.run, self.control = run, control
+        self.m = len(control.force_dofs)
+
+    def lam(self, y: np.ndarray) -> float:
+        return float(y[self.m] * self.control.scale)
+
+    def point(self, y: np.ndarray, start: Point | None) -> Point:
+        u = self.control.displacements(np.append(y[: self.m], self.lam(y)), self.run.n)
+        load = self.control.load(self.lam(y))
+        internal = self.run.advance(start, u)
+        return Point(y.copy(), u, load, self.run.evaluate(u, load, internal), internal)
+
+    def residual(self, p: Point) -> np.ndarray:
+        c = self.control
+        return p.state.R[c.force_dofs] - (c.f_base + c.f_slope * self.lam(p.y))
+
+    def correct(self, predictor: np.ndarray, normal: np.ndarray, start: Point | None,
+                fixed_lambda: float | None = None) -> Point | None:
+        """Newton onto G = 0 and normal . (y - predictor) = 0 (or lambda = fixed_lambda)."""
+        options = self.run.options
+        y = predictor.copy()
+        last = normal if fixed_lambda is None else np.eye(self.m + 1)[self.m]
+        for _ in range(options.newton_max_iter):
+            try:
+                p = self.point(y, start)
+            except DomainError:
+                return None
+            K_SS, column = self.run.blocks(self.control, p.state, self.lam(y))
+            constraint = normal @ (y - predictor) if fixed_lambda is None else y[self.m] - fixed_lambda / self.control.scale
+            G = self.residual(p)
+            if not np.all(np.isfinite(G)):
+                return None
+            step = self.run.solve(self.run.bordered(K_SS, column, last), -np.append(G, constraint))
+            y = y + step
+            if np.max(np.abs(step)) <= options.newton_tol * (1.0 + np.max(np.abs(y))):
+                try:
+                    return self.point(y, start)
+                except DomainError:
+                    return None
+        return None
+
+    def tangent(self, p: Point, previous: np.ndarray) -> np.ndarray:
+        K_SS, column = self.run.blocks(self.control, p.state, self.lam(p.y))
+        z = self.run.solve(self.run.bordered(K_SS, column, previous), np.eye(self.m + 1)[self.m])
+        return z / np.linalg.norm(z)
+
+    def indicators(self, p: Point) -> dict[str, float]:
+        """Signed indicators at p (tangent known): det K, det K_SS, the bordered det, Hill, dlambda/ds, gaps."""
+        K_SS, column = self.run.blocks(self.control, p.state, self.lam(p.y))
+        sign, log = determinant(p.state.K)
+        everything = self.m == self.run.n
+        sign_SS, log_SS = (sign, log) if everything else determinant(K_SS) if self.m else (1.0, 0.0)
+        bordered = self.run.bordered_sign(self.run.bordered(K_SS, column, p.tangent))
+        out = {"det": sign, "log_det": log, "det_SS": sign_SS, "log_det_SS": log_SS, "bordered": bordered,
+               "hill": hill_eigenvalue(p.state.K), "turning": float(p.tangent[self.m])}
+        if self.run.system.grains is not None:
+            pairs, gaps = gap_candidates(self.run.system, p.u, GAP_REACH)
+            closed = {tuple(x) for x in self.run.closed.tolist()}
+            open_ = np.array([tuple(x) not in closed for x in pairs.tolist()], dtype=bool) if len(pairs) else np.zeros(0, bool)
+            out["gap"] = float(gaps[open_].min()) if open_.any() else np.inf
+            out["gap_pairs"], out["gap_values"] = pairs[open_], gaps[open_]
+        return out
+
+
+def _sign(x: float) -> float:
+    return 0.0 if x == 0 or not np.isfinite(x) else float(np.sign(x))
+
+
+def _changed(a: dict, b: dict, key: str) -> bool:
+    return key in a and key in b and _sign(a[key]) * _sign(b[key]) < 0
+
+
+def _event_names(a: dict, b: dict) -> list[str]:
+    names = []
+    if _changed(a, b, "det"):
+        names.append("bifurcation" if _changed(a, b, "bordered") else "limit_point")
+    if _changed(a, b, "det_SS"):
+        names.append("controllability_loss")
+    if _changed(a, b, "hill"):
+        names.append("hill_loss")
+    if _changed(a, b, "turning"):
+        names.append("turning_point")
+    if "gap" in a and a["gap"] > 0 and b.get("gap", np.inf) < 0:
+        names.append("secondary_contact")
+    return names
+
+
+def _indicator_key(event: str) -> str:
+    return {"bifurcation": "det", "limit_point": "det", "controllability_loss": "det_SS", "hill_loss": "hill",
+            "turning_point": "turning", "secondary_contact": "gap"}[event]
+
+
+def _locate(stepper: Stepper, p: Point, t: np.ndarray, h: float, test, tol: float):
+    """Bisection on sigma in (0, h) for the sign change of ``test(point)`` (True past the crossing)."""
+    lo, hi = 0.0, h
+    found = None
+    for _ in range(200):
+        if hi - lo <= tol * max(h, 1e-300):
+            break
+        mid = 0.5 * (lo + hi)
+        q = stepper.correct(p.y + mid * t, t, p)
+        if q is None:
+            break
+        q.tangent = stepper.tangent(q, t)
+        q.indicators = stepper.indicators(q)
+        if test(q):
+            hi, found = mid, q
+        else:
+            lo = mid
+    sigma = 0.5 * (lo + hi)
+    q = stepper.correct(p.y + sigma * t, t, p) or found
+    if q is not None:
+        q.tangent = stepper.tangent(q, t)
+        q.indicators = stepper.indicators(q)
+    return sigma, lo, hi, q
+
+
+def _record(out: CaseOutcome, name: str, q: Point, stage: int, s: float, lower: float, upper: float, lam: float) -> None:
+    if name in out.events:
+        return
+    out.events[name] = {"point": q, "s": s, "s_lower": lower, "s_upper": upper, "stage": stage, "lam": lam}
+
+
+def _switch_direction(stepper: Stepper, e: Point, sense: int) -> np.ndarray:
+    """The bifurcating branch's tangent at e: (phi, 0) orthogonal to the incoming tangent."""
+    K_SS, _ = stepper.run.blocks(stepper.control, e.state, stepper.lam(e.y))
+    _, phi = critical_eigenvalue(K_SS)
+    d = np.append(phi, 0.0)
+    d -= (d @ e.tangent) * e.tangent
+    d /= np.linalg.norm(d)
+    if d[np.argmax(np.abs(d))] < 0:
+        d = -d
+    return sense * d
+
+
+def _quiet(indicators: dict, keys) -> dict:
+    """The indicators with the signs of ``keys`` cleared (a restart on their zero)."""
+    return {**indicators, **{k: 0.0 for k in keys if k in indicators}}
+
+
+def follow_case(run: CaseRun, programme: LoadingProgramme, values: dict[str, float], dofs, forces,
+                load_name: str | None, progress=None) -> CaseOutcome:
+    """Follow one case along ``programme``; never raises for a numerical failure (its status says it)."""
+    out = CaseOutcome()
+    options = run.options
+    u = np.zeros(run.n)
+    state = run.evaluate(u, 0.0, run.zero_internal())
+    previous = Point(np.zeros(0), u, 0.0, state, run.zero_internal())
+    s = 0.0
+    for number, stage in enumerate(programme.stages):
+        control = stage_control(stage, number + 1, dofs, forces, load_name, previous.u, previous.state.R,
+                                previous.load, values)
+        stepper = Stepper(run, control)
+        m = stepper.m
+        y0 = np.append(previous.u[control.force_dofs], control.lam_start / control.scale)
+        sense = 1.0 if control.lam_end >= control.lam_start else -1.0
+        p = stepper.correct(y0, np.eye(m + 1)[m], previous, fixed_lambda=control.lam_start)
+        if p is None:
+            out.status, out.message = "failed:newton", f"stage {number + 1}: no equilibrium at its start"
+            return out
+        p.tangent = stepper.tangent(p, sense * np.eye(m + 1)[m])
+        p.indicators = stepper.indicators(p)
+        if number == 0:
+            out.points.append(p), out.stages.append(0), out.arclength.append(0.0)
+        switching = getattr(stage, "at_bifurcation", "continue")
+        sense_switch = getattr(stage, "direction", 1)
+        if switching == "branches":
+            branch = int(values.get("branch", 0))
+            switching, sense_switch = ("switch", branch) if branch else ("continue", 1)
+        switched = False
+        t = p.tangent
+        h = 0.01 if options.initial_step == "auto" else float(options.initial_step)
+        target = control.lam_end
+        while True:
+            if out.accepted + out.rejected >= options.max_steps:
+                out.status, out.message = "failed:max_steps", f"stage {number + 1}: more than {options.max_steps} steps"
+                return out
+            h = min(h, MAX_LAMBDA_STEP / max(abs(t[m]), 1e-300),
+                    MAX_RELATIVE_MOVE * max(1.0, np.max(np.abs(p.u))) / max(np.max(np.abs(t[:m]), initial=0.0), 1e-300))
+            q = stepper.correct(p.y + h * t, t, p)
+            if q is not None:
+                q.tangent = stepper.tangent(q, t)
+                if q.tangent @ t < np.cos(0.2):
+                    q = None
+            if q is None:
+                out.rejected += 1
+                h *= 0.5
+                if h < options.min_step:
+                    where = f"stage {number + 1} at lambda = {stepper.lam(p.y):.6g}"
+                    try:
+                        stepper.point(p.y + 2 * options.min_step * t, p)
+                        reason, text = "newton", f"{where}: the corrector does not converge"
+                    except ArithmeticError as error:
+                        reason, text = "domain", f"{where}: the path leaves the domain ({error})"
+                    out.status, out.message = f"failed:{reason}", text
+                    return out
+                continue
+            q.indicators = stepper.indicators(q)
+            lam_p, lam_q = stepper.lam(p.y), stepper.lam(q.y)
+            crossings: list[tuple[float, str, float, float, Point]] = []
+            for name in _event_names(p.indicators, q.indicators):
+                key = _indicator_key(name)
+                before = _sign(p.indicators[key]) if key != "gap" else 1.0
+
+                def test(x, key=key, before=before):
+                    return (x.indicators[key] < 0) if key == "gap" else _sign(x.indicators[key]) == -before
+                sigma, lo, hi, e = _locate(stepper, p, t, h, test, options.event_tol)
+                if e is not None:
+                    crossings.append((sigma, name, lo, hi, e))
+            if (lam_q - target) * sense >= 0 and (lam_p - target) * sense < 0:
+                sigma, lo, hi, e = _locate(stepper, p, t, h, lambda x: (stepper.lam(x.y) - target) * sense >= 0,
+                                           options.event_tol)
+                end = stepper.correct(p.y + sigma * t, t, p, fixed_lambda=target)
+                if end is not None:
+                    end.tangent, end.indicators = e.tangent, e.indicators
+                    crossings.append((sigma, "<end>", lo, hi, end))
+            crossings.sort(key=lambda c: c[0])
+            disrupted = None
+            for sigma, name, lo, hi, e in crossings:
+                if name == "<end>":
+                    disrupted = (sigma, name, e)
+                    break
+                _record(out, name, e, number, s + sigma, s + lo, s + hi, stepper.lam(e.y))
+                if name in stage.stop_at or (name == "secondary_contact" and run.mode == "stop"):
+                    disrupted = (sigma, "stop:" + name, e)
+                    break
+                if name == "bifurcation" and switching == "switch" and not switched:
+                    disrupted = (sigma, "switch", e)
+                    break
+                if name == "secondary_contact" and run.mode == "activate":
+                    disrupted = (sigma, "activate", e)
+                    break
+            if disrupted is None:
+                out.accepted += 1
+                s += h
+                out.points.append(q), out.stages.append(number), out.arclength.append(s)
+                p, t = q, q.tangent
+                h *= 1.3
+                continue
+            sigma, what, e = disrupted
+            s += sigma
+            out.accepted += 1
+            out.points.append(e), out.stages.append(number), out.arclength.append(s)
+            if what == "<end>":
+                previous = e
+                break
+            if what.startswith("stop:"):
+                out.status = f"stopped:{what[5:]}"
+                out.message = f"stage {number + 1}: stopped at the {what[5:].replace('_', ' ')}"
+                return out
+            if what == "switch":
+                switched = True
+                e.tangent = _switch_direction(stepper, e, sense_switch)
+                e.indicators = _quiet(e.indicators, ("det", "det_SS", "bordered", "hill", "turning"))
+            else:  # a secondary contact closes: its spring acts from here on
+                pairs, gaps = e.indicators["gap_pairs"], e.indicators["gap_values"]
+                run.closed = np.concatenate([run.closed, pairs[gaps <= 1e-9 * max(1.0, np.max(np.abs(e.u)))]])
+                e = stepper.point(e.y, p) if len(run.closed) else e
+                e.tangent = stepper.tangent(e, t)
+                e.indicators = _quiet(stepper.indicators(e), ("det", "det_SS", "bordered", "hill"))
+            p, t = e, e.tangent
+            h = max(h * 0.5, 1e-6)
+        if progress is not None:
+            progress()
+    return out
