@@ -170,6 +170,19 @@ class CaseRun:
         residual = right - np.append(K_SS @ x[:m] + column * x[m], last @ x)
         return x + once(residual)
 
+    def solve_exactly(self, A, right: np.ndarray) -> np.ndarray:
+        """Solve with the bordered Jacobian factorized whole (SuperLU with partial pivoting):
+        accurate where K_SS is nearly singular (next to a bifurcation), at the price of the
+        border's fill; used for the path tangent, whose lambda component decides turning points."""
+        if self.dense:
+            return np.linalg.solve(A, right)
+        import scipy.sparse as sparse
+
+        _, K_SS, column, last = A
+        whole = sparse.bmat([[K_SS, sparse.csr_matrix(column[:, None])],
+                             [sparse.csr_matrix(last[None, :-1]), sparse.csr_matrix(last[None, -1:])]], format="csc")
+        return splinalg.splu(whole).solve(right)
+
     def bordered_sign(self, A) -> float:
         """sign det of the bordered Jacobian (det K_SS times its Schur complement)."""
         from ncstab.operators.sparse_indicators import lu_determinant

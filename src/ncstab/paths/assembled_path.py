@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ncstab.operators.assembly import gap_candidates
+from ncstab.operators.assembly import energy_forms, gap_candidates
 from ncstab.operators.sparse_indicators import critical_eigenvalue, determinant, hill_eigenvalue
 from ncstab.paths.assembled_control import StageControl, stage_control
 from ncstab.paths.assembled_engine import GAP_REACH, MAX_LAMBDA_STEP, MAX_RELATIVE_MOVE, CaseRun, DomainError, Point
@@ -75,7 +75,7 @@ class Stepper:
 
     def tangent(self, p: Point, previous: np.ndarray) -> np.ndarray:
         K_SS, column = self.run.blocks(self.control, p.state, self.lam(p.y))
-        z = self.run.solve(self.run.bordered(K_SS, column, previous), np.eye(self.m + 1)[self.m])
+        z = self.run.solve_exactly(self.run.bordered(K_SS, column, previous), np.eye(self.m + 1)[self.m])
         return z / np.linalg.norm(z)
 
     def indicators(self, p: Point) -> dict[str, float]:
@@ -96,6 +96,42 @@ class Stepper:
         return out
 
 
+#: Below this part of max |K_ij| an eigenvalue (Hill's, the one nearest zero) carries no sign.
+EIGENVALUE_NOISE = 1e-13
+#: Events located this part of a step apart are at the same point (Hill's eigenvalue and det K
+#: vanish together on a symmetric path; eigvalsh locates the first to 1e-8 of a step, the LU 1e-12).
+SAME_POINT = 1e-6
+#: Below this part of |lambda / scale| a step's change of lambda carries no sign.
+SECANT_NOISE = 1e-12
+
+
+def _steady(stepper: Stepper, p: Point, q: Point) -> dict:
+    """q's indicators, with the sign of p kept where q's value is within rounding of zero.
+
+    A sign within rounding is no sign: just past a bifurcation the buckled column's
+    critical eigenvalue is 1e-16 against entries of K of order 6, and dlambda/ds is
+    1e-7 with errors of the same size.  Keeping the last sign that was certain means
+    a true crossing is still a change, located where the sign becomes certain.
+    """
+    a, b = p.indicators, dict(q.indicators)
+    K = q.state.K
+    scale = float(abs(K).max()) if K.shape[0] else 1.0
+    noise = EIGENVALUE_NOISE * max(scale, 1e-300)
+    rise = float(q.y[-1] - p.y[-1])  # the secant's dlambda: robust where the tangent is not
+    b["secant"] = a.get("secant", 0.0) if abs(rise) <= SECANT_NOISE * max(1.0, abs(q.y[-1])) else rise
+    if abs(b["hill"]) <= noise:
+        b["hill"] = a["hill"]
+    for key, matrix in (("det", K), ("det_SS", None)):
+        if _sign(a[key]) != _sign(b[key]):
+            if matrix is None:
+                matrix = stepper.run.blocks(stepper.control, q.state, stepper.lam(q.y))[0]
+            if abs(critical_eigenvalue(matrix)[0]) <= noise:
+                b[key] = a[key]
+                if key == "det":
+                    b["bordered"] = a["bordered"]
+    return b
+
+
 def _sign(x: float) -> float:
     return 0.0 if x == 0 or not np.isfinite(x) else float(np.sign(x))
 
@@ -112,7 +148,7 @@ def _event_names(a: dict, b: dict) -> list[str]:
         names.append("controllability_loss")
     if _changed(a, b, "hill"):
         names.append("hill_loss")
-    if _changed(a, b, "turning"):
+    if _changed(a, b, "secant"):
         names.append("turning_point")
     if "gap" in a and a["gap"] > 0 and b.get("gap", np.inf) < 0:
         names.append("secondary_contact")
@@ -167,6 +203,31 @@ def _switch_direction(stepper: Stepper, e: Point, sense: int) -> np.ndarray:
     return sense * d
 
 
+def refine_critical_load(stepper: Stepper, e: Point) -> Point:
+    """On a trivial path of a load-parameter stage (u does not move with P), the located critical
+    load refined by the two-sided Rayleigh quotient of the pencil K = K_int - P K_load, in element
+    form (:func:`ncstab.operators.assembly.energy_forms`): stationary at the critical load, and free
+    of the cancellation in K's assembled entries that limits a sign-change location at large n."""
+    control, run, m = stepper.control, stepper.run, stepper.m
+    if not control.load_stage or e.tangent is None or np.max(np.abs(e.tangent[:m]), initial=0.0) > 1e-10:
+        return e
+    K_SS, _ = run.blocks(control, e.state, stepper.lam(e.y))
+    right, left = np.zeros(run.n), np.zeros(run.n)
+    right[control.force_dofs] = critical_eigenvalue(K_SS)[1]
+    left[control.force_dofs] = critical_eigenvalue(K_SS.T)[1]
+    inner, outer = energy_forms(run.system, run.law, run.parameters, e.u, e.internal, left, right,
+                                run.closed, run.kappa)
+    if outer == 0 or not np.isfinite(inner / outer):
+        return e
+    refined = stepper.correct(e.y, e.tangent, None, fixed_lambda=inner / outer)
+    if refined is None or abs(refined.load - e.load) > 1e-6 * max(abs(e.load), 1e-300):
+        return e
+    refined.internal = e.internal
+    refined.tangent = stepper.tangent(refined, e.tangent)
+    refined.indicators = e.indicators
+    return refined
+
+
 def _quiet(indicators: dict, keys) -> dict:
     """The indicators with the signs of ``keys`` cleared (a restart on their zero)."""
     return {**indicators, **{k: 0.0 for k in keys if k in indicators}}
@@ -193,7 +254,7 @@ def follow_case(run: CaseRun, programme: LoadingProgramme, values: dict[str, flo
             out.status, out.message = "failed:newton", f"stage {number + 1}: no equilibrium at its start"
             return out
         p.tangent = stepper.tangent(p, sense * np.eye(m + 1)[m])
-        p.indicators = stepper.indicators(p)
+        p.indicators = {**stepper.indicators(p), "secant": sense}
         if number == 0:
             out.points.append(p), out.stages.append(0), out.arclength.append(0.0)
         switching = getattr(stage, "at_bifurcation", "continue")
@@ -230,16 +291,19 @@ def follow_case(run: CaseRun, programme: LoadingProgramme, values: dict[str, flo
                     return out
                 continue
             q.indicators = stepper.indicators(q)
+            q.indicators = _steady(stepper, p, q)
             lam_p, lam_q = stepper.lam(p.y), stepper.lam(q.y)
             crossings: list[tuple[float, str, float, float, Point]] = []
             for name in _event_names(p.indicators, q.indicators):
                 key = _indicator_key(name)
-                before = _sign(p.indicators[key]) if key != "gap" else 1.0
+                before = 1.0 if key == "gap" else _sign(p.indicators["secant"]) if key == "turning" else _sign(p.indicators[key])
 
                 def test(x, key=key, before=before):
                     return (x.indicators[key] < 0) if key == "gap" else _sign(x.indicators[key]) == -before
                 sigma, lo, hi, e = _locate(stepper, p, t, h, test, options.event_tol)
                 if e is not None:
+                    if name in ("bifurcation", "limit_point"):
+                        e = refine_critical_load(stepper, e)
                     crossings.append((sigma, name, lo, hi, e))
             if (lam_q - target) * sense >= 0 and (lam_p - target) * sense < 0:
                 sigma, lo, hi, e = _locate(stepper, p, t, h, lambda x: (stepper.lam(x.y) - target) * sense >= 0,
@@ -251,19 +315,20 @@ def follow_case(run: CaseRun, programme: LoadingProgramme, values: dict[str, flo
             crossings.sort(key=lambda c: c[0])
             disrupted = None
             for sigma, name, lo, hi, e in crossings:
+                if disrupted is not None and lo > disrupted[0] + SAME_POINT * h:
+                    break  # past the disruption: not on this path
                 if name == "<end>":
-                    disrupted = (sigma, name, e)
-                    break
+                    disrupted = disrupted or (sigma, name, e)
+                    continue
                 _record(out, name, e, number, s + sigma, s + lo, s + hi, stepper.lam(e.y))
+                if disrupted is not None:
+                    continue  # an event at the same point as the disruption: recorded, nothing more
                 if name in stage.stop_at or (name == "secondary_contact" and run.mode == "stop"):
                     disrupted = (sigma, "stop:" + name, e)
-                    break
-                if name == "bifurcation" and switching == "switch" and not switched:
+                elif name == "bifurcation" and switching == "switch" and not switched:
                     disrupted = (sigma, "switch", e)
-                    break
-                if name == "secondary_contact" and run.mode == "activate":
+                elif name == "secondary_contact" and run.mode == "activate":
                     disrupted = (sigma, "activate", e)
-                    break
             if disrupted is None:
                 out.accepted += 1
                 s += h
@@ -285,13 +350,14 @@ def follow_case(run: CaseRun, programme: LoadingProgramme, values: dict[str, flo
             if what == "switch":
                 switched = True
                 e.tangent = _switch_direction(stepper, e, sense_switch)
-                e.indicators = _quiet(e.indicators, ("det", "det_SS", "bordered", "hill", "turning"))
+                e.indicators = _quiet(e.indicators, ("det", "det_SS", "bordered", "hill", "secant"))
             else:  # a secondary contact closes: its spring acts from here on
                 pairs, gaps = e.indicators["gap_pairs"], e.indicators["gap_values"]
                 run.closed = np.concatenate([run.closed, pairs[gaps <= 1e-9 * max(1.0, np.max(np.abs(e.u)))]])
                 e = stepper.point(e.y, p) if len(run.closed) else e
                 e.tangent = stepper.tangent(e, t)
-                e.indicators = _quiet(stepper.indicators(e), ("det", "det_SS", "bordered", "hill"))
+                e.indicators = _quiet({**stepper.indicators(e), "secant": e.indicators.get("secant", 0.0)},
+                                      ("det", "det_SS", "bordered", "hill"))
             p, t = e, e.tangent
             h = max(h * 0.5, 1e-6)
         if progress is not None:
