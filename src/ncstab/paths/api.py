@@ -24,6 +24,7 @@ from ncstab.paths.programme import BRANCH_DIMENSION, LoadingProgramme, parse_pro
 from ncstab.paths.result import PathResult
 from ncstab.paths.rigid_model import RigidCaseBatch
 from ncstab.paths.stepper import follow_cases
+from ncstab.systems.assembled import is_assembled
 from ncstab.systems.definition import SystemDefinition
 from ncstab.systems.diamond import DiamondChain
 
@@ -132,7 +133,7 @@ def resolve_model(
     if isinstance(spec, SystemSpec):
         definition = spec.definition
         mode = spec.secondary_contacts if secondary_contacts is None else secondary_contacts
-    elif isinstance(spec, SystemDefinition):
+    elif isinstance(spec, SystemDefinition) or is_assembled(spec):
         definition, mode, spec = spec, secondary_contacts or "activate", None
     else:
         raise ValueError(f"a system is a name, a SystemSpec or a SystemDefinition, got {system!r}")
@@ -332,6 +333,11 @@ def follow(
         bar = tqdm(total=grid.size * len(model.laws), unit="case", desc="ncstab", leave=False)
     results = []
     try:
+        if is_assembled(definition):
+            from ncstab.paths.assembled_result import follow_assembled
+
+            return follow_assembled(model, programme, grid, values, options, study_text,
+                                    progress=bar.update if bar is not None else None)
         for law in model.laws:
             own = {k: np.broadcast_to(np.asarray(v, dtype=float), (grid.size,)) for k, v in own_values.get(law.name, {}).items()}
             law_values = {**own, **values}

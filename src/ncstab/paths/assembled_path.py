@@ -38,11 +38,21 @@ class Stepper:
     def lam(self, y: np.ndarray) -> float:
         return float(y[self.m] * self.control.scale)
 
-    def point(self, y: np.ndarray, start: Point | None) -> Point:
+    def point(self, y: np.ndarray, start: Point | None, along: np.ndarray | None = None) -> Point:
+        """The state at y, its internal variables advanced from ``start``; ``along``: the path's
+        unit tangent at ``start`` in this stage's y (the step then follows a quadratic arc)."""
         u = self.control.displacements(np.append(y[: self.m], self.lam(y)), self.run.n)
         load = self.control.load(self.lam(y))
-        internal = self.run.advance(start, u)
+        velocity = None if along is None else float(along @ (y - start.y)) * self.displacement_rate(along)
+        internal = self.run.advance(start, u, velocity)
         return Point(y.copy(), u, load, self.run.evaluate(u, load, internal), internal)
+
+    def displacement_rate(self, direction: np.ndarray) -> np.ndarray:
+        """du along ``direction`` in y = (u_S, lambda / scale)."""
+        du = np.zeros(self.run.n)
+        du[self.control.force_dofs] = direction[: self.m]
+        du[self.control.displacement_dofs] = self.control.u_slope * self.control.scale * direction[self.m]
+        return du
 
     def residual(self, p: Point) -> np.ndarray:
         c = self.control
@@ -54,9 +64,13 @@ class Stepper:
         options = self.run.options
         y = predictor.copy()
         last = normal if fixed_lambda is None else np.eye(self.m + 1)[self.m]
+        along = None
+        if fixed_lambda is None and start is not None and start.tangent is not None \
+                and start.tangent.shape == normal.shape and np.array_equal(start.tangent, normal):
+            along = normal  # a step along the path from start: its arc, not its chord
         for _ in range(options.newton_max_iter):
             try:
-                p = self.point(y, start)
+                p = self.point(y, start, along)
             except DomainError:
                 return None
             K_SS, column = self.run.blocks(self.control, p.state, self.lam(y))
@@ -68,7 +82,7 @@ class Stepper:
             y = y + step
             if np.max(np.abs(step)) <= options.newton_tol * (1.0 + np.max(np.abs(y))):
                 try:
-                    return self.point(y, start)
+                    return self.point(y, start, along)
                 except DomainError:
                     return None
         return None
@@ -85,8 +99,12 @@ class Stepper:
         everything = self.m == self.run.n
         sign_SS, log_SS = (sign, log) if everything else determinant(K_SS) if self.m else (1.0, 0.0)
         bordered = self.run.bordered_sign(self.run.bordered(K_SS, column, p.tangent))
+        du = self.displacement_rate(p.tangent)
+        dF = p.state.K @ du
+        size = np.linalg.norm(du) * np.linalg.norm(dF)
         out = {"det": sign, "log_det": log, "det_SS": sign_SS, "log_det_SS": log_SS, "bordered": bordered,
-               "hill": hill_eigenvalue(p.state.K), "turning": float(p.tangent[self.m])}
+               "hill": hill_eigenvalue(p.state.K), "turning": float(p.tangent[self.m]),
+               "d2W": float(du @ dF / size) if size > 0 else np.nan}
         if self.run.system.grains is not None:
             pairs, gaps = gap_candidates(self.run.system, p.u, GAP_REACH)
             closed = {tuple(x) for x in self.run.closed.tolist()}

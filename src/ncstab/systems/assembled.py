@@ -33,7 +33,7 @@ import numpy as np
 from ncstab.elements import BarSprings, BranchElements
 from ncstab.systems.definition import FamilyNames, SystemUnits
 
-__all__ = ["AssembledSystem", "AxialLoad", "ElementFamily", "GrainPositions"]
+__all__ = ["AssembledSystem", "AxialLoad", "ElementFamily", "GrainPositions", "is_assembled"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -181,3 +181,8 @@ class AssembledSystem:
     def gaps(self) -> tuple[str, ...]:
         """Non-empty where grains can meet in new (secondary) contacts."""
         return ("secondary contacts between grains",) if self.grains is not None else ()
+
+
+def is_assembled(system: Any) -> bool:
+    """Whether ``system`` is assembled from elements (followed by the sparse engine)."""
+    return isinstance(system, AssembledSystem)

@@ -79,13 +79,19 @@ def assembled_ring(grains: int) -> AssembledSystem:
 def assembled_diamond(reduction: str = "symmetric", alpha0: float = math.pi / 4) -> AssembledSystem:
     """The seed's diamond, ``reduction`` ``"symmetric"`` (D1, D2) or ``"axes"`` (four grains)."""
     c0, s0 = math.cos(alpha0), math.sin(alpha0)
+    # grains top, bottom, left, right, each moving toward the centre along its axis; the four
+    # contacts join the vertical grains to the side ones (secondary contacts: top-bottom, left-right)
+    origin = np.array([[0.0, c0], [0.0, -c0], [-s0, 0.0], [s0, 0.0]])
+    toward_centre = np.array([[[0.0], [-1.0]], [[0.0], [1.0]], [[1.0], [0.0]], [[-1.0], [0.0]]])
+    neighbours = np.array([[0, 2], [0, 3], [1, 2], [1, 3]])
     if reduction == "symmetric":
         contacts = BranchElements(("contact",), np.array([[0, 1]]), -np.eye(2)[None], np.array([[c0, s0]]), weight=2.0)
+        grains = GrainPositions(origin, np.array([[0], [0], [1], [1]]), toward_centre, neighbours, gap_weight=0.5)
         return AssembledSystem(
             name="diamond", title="four-grain diamond reduced by symmetry (seed Figs. 1-2)",
             dofs=("D1", "D2"), forces=("F1", "F2"), contacts=contacts, contact_alpha0=np.array([alpha0]),
-            masses=np.ones(2), units=GRANULAR_UNITS, settings=(("reduction", "symmetric"),), reference=SEED,
-            work_factor=0.5,
+            grains=grains, masses=np.ones(2), units=GRANULAR_UNITS, settings=(("reduction", "symmetric"),),
+            reference=SEED, work_factor=0.5,
         )
     if reduction != "axes":
         raise ValueError(f"reduction = {reduction!r} is not allowed; allowed: symmetric, axes")
@@ -98,7 +104,9 @@ def assembled_diamond(reduction: str = "symmetric", alpha0: float = math.pi / 4)
     return AssembledSystem(
         name="diamond", title="four-grain diamond, each grain free along its own axis",
         dofs=("D_top", "D_bottom", "D_left", "D_right"), forces=("F_top", "F_bottom", "F_left", "F_right"),
-        contacts=contacts, contact_alpha0=np.full(4, alpha0), masses=np.ones(4), units=GRANULAR_UNITS,
+        contacts=contacts, contact_alpha0=np.full(4, alpha0),
+        grains=GrainPositions(origin, np.arange(4)[:, None], toward_centre, neighbours),
+        masses=np.ones(4), units=GRANULAR_UNITS,
         settings=(("reduction", "axes"),), reference=SEED, work_factor=0.25,
     )
 

@@ -19,7 +19,7 @@ from ncstab.systems.bars import ZIEGLER_LOADS, ZIEGLER_PARAMETERS, column, ziegl
 from ncstab.systems.definition import SystemDefinition
 from ncstab.systems.granular import axes_diamond, ring, symmetric_diamond
 
-__all__ = ["REDUCTIONS", "SYSTEMS", "Setting", "SystemKind", "system_definition"]
+__all__ = ["DERIVED_DOFS_LIMIT", "REDUCTIONS", "SYSTEMS", "Setting", "SystemKind", "system_definition"]
 
 #: Reductions of the diamond.
 REDUCTIONS = ("symmetric", "axes")
@@ -119,6 +119,31 @@ def _diamond(reduction: str = "symmetric") -> SystemDefinition:
     return symmetric_diamond() if reduction == "symmetric" else axes_diamond()
 
 
+#: Up to this many dofs a ring or a column is derived whole and followed by the compiled,
+#: batched loop (many cases at once, each a few microseconds a state); above it, it is
+#: assembled from elements (:mod:`ncstab.systems.assembled_builders`) and followed by the
+#: sparse engine (:mod:`ncstab.paths.assembled_path`), whose cost is linear in n.  The
+#: derived route costs 1-60 s of sympy and compilation per new size and grows faster than
+#: n^2; the assembled route a few milliseconds (docs/models.md, "Systems of any size").
+DERIVED_DOFS_LIMIT = 8
+
+
+def _ring(grains: int):
+    if isinstance(grains, int) and grains > DERIVED_DOFS_LIMIT:
+        from ncstab.systems.assembled_builders import assembled_ring
+
+        return assembled_ring(grains)
+    return ring(grains)
+
+
+def _column(links: int):
+    if isinstance(links, int) and links - 1 > DERIVED_DOFS_LIMIT:
+        from ncstab.systems.assembled_builders import assembled_column
+
+        return assembled_column(links)
+    return column(links)
+
+
 #: Every system ncstab knows, by name.
 SYSTEMS: dict[str, SystemKind] = {
     "diamond": SystemKind(
@@ -139,7 +164,7 @@ SYSTEMS: dict[str, SystemKind] = {
         shorthands=(),
         granular=True,
         own_laws=False,
-        build=ring,
+        build=_ring,
     ),
     "column": SystemKind(
         name="column",
@@ -149,7 +174,7 @@ SYSTEMS: dict[str, SystemKind] = {
         shorthands=(),
         granular=False,
         own_laws=True,
-        build=column,
+        build=_column,
     ),
     "ziegler": SystemKind(
         name="ziegler",

@@ -1,0 +1,157 @@
+"""Systems assembled from elements, followed by the sparse engine through ``ncstab run`` and ``follow``.
+
+Above :data:`ncstab.systems.registry.DERIVED_DOFS_LIMIT` dofs a ring or a column is
+assembled from elements; below it the same assembled systems are checked against the
+derived systems followed by the compiled loop, and at every size against closed forms
+(Hencky's buckling loads, the seed's Eq. 49) and exact properties (equilibrium, symmetry).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from ncstab.cli import main
+from ncstab.paths.api import follow
+from ncstab.paths.options import SystemSpec
+from ncstab.studies import load_study, open_study
+from ncstab.studies.run import run_study
+from ncstab.systems.assembled import AssembledSystem
+from ncstab.systems.assembled_builders import assembled_diamond
+from ncstab.systems.closed_forms import mcnamara_load_rotation
+from ncstab.systems.registry import DERIVED_DOFS_LIMIT, system_definition
+
+SEED_LAWS = ["cundall_strack", "weakly_hypoelastic", "mcnamara", "turco"]
+AXES_PROGRAMME = [
+    {"hold": {"F_top": 0.0, "F_bottom": 0.0}, "drive": {"F_left": 0.75, "F_right": 0.75}},
+    {"hold": {"F_left": "current", "F_right": "current"}, "drive": {"D_top": 0.6, "D_bottom": 0.6}},
+]
+EVENT_NAMES = ["limit_point", "hill_loss", "bifurcation", "secondary_contact", "turning_point",
+               "controllability_loss"]
+
+
+def test_rings_and_columns_are_assembled_above_the_derived_limit():
+    assert not isinstance(system_definition("ring", (("grains", DERIVED_DOFS_LIMIT),)), AssembledSystem)
+    assert isinstance(system_definition("ring", (("grains", DERIVED_DOFS_LIMIT + 1),)), AssembledSystem)
+    assert not isinstance(system_definition("column", (("links", DERIVED_DOFS_LIMIT + 1),)), AssembledSystem)
+    assert isinstance(system_definition("column", (("links", DERIVED_DOFS_LIMIT + 2),)), AssembledSystem)
+
+
+@pytest.mark.parametrize("law", SEED_LAWS)
+def test_sparse_engine_agrees_with_the_compiled_loop_on_the_axes_diamond(law):
+    """The four-axes diamond (seed Figs. 9-11 case) followed both ways: the same events and end state.
+
+    Total-form laws: the path is a curve of equilibria, both engines converge onto it with
+    Newton and locate sign changes by root finding, so the located states agree to 1e-10
+    (measured 1e-12).  Cundall-Strack's rate form is integrated differently (the compiled
+    loop along its steps, the sparse engine by RK4 on a quadratic arc, third order): the
+    states agree to 2e-5 (measured 5e-6; halving the sparse engine's steps moves it toward
+    the loop's values at its order).
+    """
+    compiled = follow(SystemSpec("diamond", reduction="axes", secondary_contacts="ignore"), [law],
+                      AXES_PROGRAMME, {"gamma": 0.5}).to_dataset()
+    sparse = follow(assembled_diamond("axes"), [law], AXES_PROGRAMME, {"gamma": 0.5},
+                    secondary_contacts="ignore").to_dataset()
+    tolerance = 2e-5 if law == "cundall_strack" else 1e-10
+    a, b = int(compiled.n_steps[0]) - 1, int(sparse.n_steps[0]) - 1
+    np.testing.assert_allclose(sparse.u[0, b], compiled.u[0, a], atol=tolerance, rtol=0)
+    np.testing.assert_allclose(sparse.F[0, b], compiled.F[0, a], atol=10 * tolerance, rtol=0)
+    found = 0
+    for event in EVENT_NAMES:
+        x, y = compiled[f"{event}_u"][0].values, sparse[f"{event}_u"][0].values
+        assert np.isnan(x).all() == np.isnan(y).all(), event
+        if not np.isnan(x).all():
+            found += 1
+            np.testing.assert_allclose(y, x, atol=tolerance, rtol=0, err_msg=event)
+    assert found >= 1  # the comparison bears on located events
+
+
+def test_reduced_diamond_assembled_follows_the_seed_closed_form():
+    """McNamara's diamond, F2 = 0, gamma = 2: F1*(alpha) on every stored state is one of the two
+    branches of seed Eq. (48) to 1e-10 (Newton's tolerance on equilibrium): Eq. (49) up to the
+    maximum rotation (seed Fig. 3), the other branch past it."""
+    programme = [{"hold": {"F2": 0.0}, "drive": {"D1": 0.5}}]
+    ds = follow(assembled_diamond("symmetric"), ["mcnamara"], programme, {"gamma": 2.0},
+                secondary_contacts="ignore").to_dataset()
+    n = int(ds.n_steps[0])
+    alpha, F1 = ds.alpha[0, :n].values, ds.F[0, :n, 0].values
+    first = mcnamara_load_rotation(alpha, 2.0, np.pi / 4, branch=-1)
+    second = mcnamara_load_rotation(alpha, 2.0, np.pi / 4, branch=+1)
+    gap = np.minimum(np.abs(F1 - first), np.abs(F1 - second))
+    assert np.nanmax(gap) < 1e-10
+    on_first = np.abs(F1 - first) < 1e-10
+    assert on_first[:10].all() and not on_first[-3:].any()  # past the maximum rotation: Eq. (48), + branch
+    assert n > 20
+
+
+@pytest.fixture(scope="module")
+def column_of_1000(tmp_path_factory):
+    links = 1000
+    critical = 4 * np.sin(np.pi / (2 * links)) ** 2
+    folder = tmp_path_factory.mktemp("column")
+    study = folder / "column1000.toml"
+    study.write_text(
+        f'[study]\nname = "column1000"\n[system]\nname = "column"\nlinks = {links}\n'
+        f'[[loading]]\ndrive = {{ P = {float(1.2 * critical)!r} }}\nat_bifurcation = "switch"\n'
+    )
+    output = folder / "column1000.nc"
+    assert main(["run", str(study), "-o", str(output), "--quiet"]) == 0
+    return study, output, critical
+
+
+def test_column_of_1000_links_buckles_at_henckys_load(column_of_1000):
+    """``ncstab run``: Hencky's P1 = 4 sin^2(pi / 2n) located to 1e-8 relative (the bar of the
+    issue; measured 4e-13: the critical load is refined by the pencil's Rayleigh quotient),
+    then the buckled branch followed to the target 1.2 P1."""
+    _, output, critical = column_of_1000
+    ds = open_study(output)
+    assert str(ds.status.values.item()) == "finished"
+    assert ds.sizes["dof"] == 999
+    assert abs(float(ds.bifurcation_load.values.item()) / critical - 1) < 1e-8
+    n = int(ds.n_steps.values.item())
+    assert float(ds["load"][0, n - 1]) == pytest.approx(1.2 * critical, rel=1e-12)
+    assert np.abs(ds.u[0, n - 1]).max() > 1.0  # buckled: the straight path has u = 0
+    # every force-free dof in equilibrium at every stored state (Newton's tolerance)
+    assert np.nanmax(np.abs(ds.F.values)) < 1e-9
+    assert "K" not in ds  # 999 dofs: K is not stored, its indicators are
+    # the straight column is stable below P1 and so is the buckled one (a supercritical pitchfork):
+    # Hill's eigenvalue stays positive; at the bifurcation it is P1's eigenvalue gap, about 0
+    hill = ds.hill[0, :n].values
+    assert (hill >= 0).all() and hill.min() < 1e-3 * hill.max()
+
+
+def test_assembled_archive_round_trips(column_of_1000):
+    """The archive read back is the Dataset of a second run, bit for bit (the run repeats exactly:
+    ARPACK starts from a fixed vector), its time of creation aside."""
+    study, output, _ = column_of_1000
+    again, written = run_study(load_study(study)), open_study(output)
+    again.attrs["created"] = written.attrs["created"]
+    xr.testing.assert_identical(again, written)
+
+
+def test_ring_of_400_grains_pushed_in_top_and_bottom(tmp_path):
+    """A ring of 400 grains, McNamara, grains 1 (top) and 201 (bottom) pushed in, the others
+    force-free: it finishes; the free grains are in equilibrium (1e-9, Newton's tolerance);
+    the path is symmetric about the vertical axis (grain k and grain n + 2 - k) and F1 = F201
+    (symmetry of the loading), both to 1e-9."""
+    n = 400
+    holds = ", ".join(f"F{k} = 0.0" for k in range(2, n + 1) if k != 201)
+    study = tmp_path / "ring400.toml"
+    study.write_text(
+        f'[study]\nname = "ring400"\n[system]\nname = "ring"\ngrains = {n}\n[laws]\nnames = ["mcnamara"]\n'
+        f'[parameters]\ngamma = 0.5\n[[loading]]\nhold = {{ {holds} }}\ndrive = {{ D1 = 0.15, D201 = 0.15 }}\n'
+    )
+    output = tmp_path / "ring400.nc"
+    assert main(["run", str(study), "-o", str(output), "--quiet"]) == 0
+    ds = open_study(output)
+    assert str(ds.status.values.item()) == "finished"
+    last = int(ds.n_steps.values.item()) - 1
+    u, F = ds.u[0, last].values, ds.F[0, last].values
+    assert u[0] == pytest.approx(0.15, abs=1e-12) and u[200] == pytest.approx(0.15, abs=1e-12)
+    free = np.ones(n, bool)
+    free[[0, 200]] = False
+    assert np.abs(F[free]).max() < 1e-9
+    mirror = (n - np.arange(n)) % n  # grain k <-> grain n + 2 - k (0-based: i <-> n - i)
+    np.testing.assert_allclose(u, u[mirror], atol=1e-9, rtol=0)
+    assert F[0] == pytest.approx(F[200], abs=1e-9) and F[0] > 0
