@@ -43,6 +43,8 @@ __all__ = ["CaseRun", "DomainError", "Point"]
 MAX_LAMBDA_STEP = 0.02
 #: Largest change of any dof in one step: this part of max(1, |u|_inf) (events and gaps resolved).
 MAX_RELATIVE_MOVE = 0.05
+#: Largest relative residual of a tangent from block elimination (else the bordered Jacobian whole).
+TANGENT_RESIDUAL = 1e-12
 #: Reach of the neighbour search for secondary contacts (units 2R); steps move a grain less.
 GAP_REACH = 0.5
 
@@ -189,6 +191,21 @@ class CaseRun:
         x = once(right)
         residual = right - np.append(K_SS @ x[:m] + column * x[m], last @ x)
         return x + once(residual)
+
+    def solve_tangent(self, A, right: np.ndarray) -> np.ndarray:
+        """Solve for the path tangent: block elimination on K_SS's LU where it is accurate (its
+        residual within :data:`TANGENT_RESIDUAL` of the right-hand side: O(n) for banded K), else
+        the bordered Jacobian factorized whole (next to a bifurcation, where K_SS is nearly
+        singular and the two eliminated solves cancel)."""
+        if self.dense:
+            return np.linalg.solve(A, right)
+        x = self.solve(A, right)
+        _, K_SS, column, last = A
+        m = len(column)
+        residual = right - np.append(K_SS @ x[:m] + column * x[m], last @ x)
+        if np.linalg.norm(residual) <= TANGENT_RESIDUAL * np.linalg.norm(right) and np.all(np.isfinite(x)):
+            return x
+        return self.solve_exactly(A, right)
 
     def solve_exactly(self, A, right: np.ndarray) -> np.ndarray:
         """Solve with the bordered Jacobian factorized whole (SuperLU with partial pivoting):

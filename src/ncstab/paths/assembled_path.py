@@ -14,6 +14,13 @@ from ncstab.paths.programme import LoadingProgramme
 
 __all__ = ["CaseOutcome", "follow_case"]
 
+def _last_unit(size: int) -> np.ndarray:
+    """The unit vector along y's last coordinate, lambda / scale."""
+    out = np.zeros(size)
+    out[-1] = 1.0
+    return out
+
+
 @dataclass
 class CaseOutcome:
     """What one case gives: its stored points (with stage and arclength), events, status."""
@@ -63,7 +70,7 @@ class Stepper:
         """Newton onto G = 0 and normal . (y - predictor) = 0 (or lambda = fixed_lambda)."""
         options = self.run.options
         y = predictor.copy()
-        last = normal if fixed_lambda is None else np.eye(self.m + 1)[self.m]
+        last = normal if fixed_lambda is None else _last_unit(self.m + 1)
         along = None
         if fixed_lambda is None and start is not None and start.tangent is not None \
                 and start.tangent.shape == normal.shape and np.array_equal(start.tangent, normal):
@@ -89,7 +96,7 @@ class Stepper:
 
     def tangent(self, p: Point, previous: np.ndarray) -> np.ndarray:
         K_SS, column = self.run.blocks(self.control, p.state, self.lam(p.y))
-        z = self.run.solve_exactly(self.run.bordered(K_SS, column, previous), np.eye(self.m + 1)[self.m])
+        z = self.run.solve_tangent(self.run.bordered(K_SS, column, previous), _last_unit(self.m + 1))
         return z / np.linalg.norm(z)
 
     def indicators(self, p: Point) -> dict[str, float]:
@@ -267,11 +274,11 @@ def follow_case(run: CaseRun, programme: LoadingProgramme, values: dict[str, flo
         m = stepper.m
         y0 = np.append(previous.u[control.force_dofs], control.lam_start / control.scale)
         sense = 1.0 if control.lam_end >= control.lam_start else -1.0
-        p = stepper.correct(y0, np.eye(m + 1)[m], previous, fixed_lambda=control.lam_start)
+        p = stepper.correct(y0, _last_unit(m + 1), previous, fixed_lambda=control.lam_start)
         if p is None:
             out.status, out.message = "failed:newton", f"stage {number + 1}: no equilibrium at its start"
             return out
-        p.tangent = stepper.tangent(p, sense * np.eye(m + 1)[m])
+        p.tangent = stepper.tangent(p, sense * _last_unit(m + 1))
         p.indicators = {**stepper.indicators(p), "secant": sense}
         if number == 0:
             out.points.append(p), out.stages.append(0), out.arclength.append(0.0)
