@@ -182,5 +182,5 @@ def test_on_a_terminal_the_run_says_when_it_writes_the_archive(tmp_path, capsys,
     writing = [line for line in lines if "writing" in line]
     assert writing[0] == f"ncstab run: tiny: writing {output} ..."
     assert writing[1].startswith(f"ncstab run: tiny: writing {output}: done in ") and writing[1].endswith(" s")
-    assert main(["run", str(study), "-o", str(output), "--quiet"]) == 0
+    assert main(["run", str(study), "-o", str(output), "--quiet", "--overwrite"]) == 0
     assert "writing" not in capsys.readouterr().err

@@ -173,6 +173,23 @@ BAD_STUDIES = [
      r"output\.figures: .*total form"),
     ("output-file-directory", "figures = []", 'figures = []\nfile = "results/"', r"output\.file: .*directory"),
     ("output-file-empty", "figures = []", 'figures = []\nfile = ""', r"output\.file: expected a non-empty"),
+    # issue 42: ranges and the symbolic work bounded before anything is computed
+    ("options-newton-max-iter-huge", "max_step = 0.05", "max_step = 0.05\nnewton_max_iter = 100000000000000000000",
+     r"options\.newton_max_iter: expected a whole number from 1 to 1,000, got 100,000,000,000,000,000,000"),
+    ("options-max-steps-huge", "max_step = 0.05", "max_step = 0.05\nmax_steps = 9223372036854775807",
+     r"options\.max_steps: expected a whole number from 1 to 1,000,000,000"),
+    ("user-law-900-digit-constant", 'names = ["mcnamara"]',
+     'names = ["w"]\n[laws.w]\nnormal = "-(l - 1)*1' + "0" * 899 + '"\ntangential = "gamma*sin(alpha - alpha0)"',
+     r"laws\.w\.normal: the number 1000+\.\.\. is too large: numbers in a formula are at most 1e\+15"),
+    ("user-law-computed-huge-constant", 'names = ["mcnamara"]',
+     'names = ["w"]\n[laws.w]\nnormal = "-(l - 1)*(1 + 999999999999999**5*(l - 1)**2)"\n'
+     'tangential = "gamma*sin(alpha - alpha0)"', r"laws\.w\.normal: .* makes the number 9+\d*\.\.\., whose numerator"),
+    ("user-law-energy-of-a-hundredth-power", 'names = ["mcnamara"]',
+     'names = ["w"]\n[laws.w]\nenergy = "(l + alpha + gamma + alpha0 + 1)**100*(l - 1)**2"',
+     r"laws\.w\.energy: '\(l \+ alpha \+ gamma \+ alpha0 \+ 1\) \*\* 100' has more than 1,000 terms once expanded"),
+    ("user-law-function-of-a-large-power", 'names = ["mcnamara"]',
+     'names = ["w"]\n[laws.w]\nnormal = "-(l - 1)"\ntangential = "sin((l + alpha + gamma + 1)**20)"',
+     r"laws\.w\.tangential: .* has more than 1,000 terms once expanded"),
 ]
 
 
@@ -235,6 +252,26 @@ BAD_ARGUMENTS = [
     ("plot-diagram-of-one-sweep", ["plot", "{archive}", "--kinds", "stability_diagram"],
      r"cannot draw the figures: .*two swept parameters"),
     ("unknown-option", ["run", "{study}", "--fast"], r"unrecognized arguments: --fast"),
+    # issue 42: the output is absent, or an ncstab archive and --overwrite; nothing else is touched
+    ("output-empty", ["run", "{study}", "-o", ""], r"^ncstab run: -o/--output '' is empty"),
+    ("output-dotdot-after-a-missing-directory", ["run", "{study}", "-o", "nosuch/../out.nc"],
+     r"output nosuch/\.\./out\.nc: nosuch does not exist, so nosuch/\.\. cannot be resolved"),
+    ("output-directory-name-too-long", ["run", "{study}", "-o", "d" * 300 + "/out.nc"],
+     r"^ncstab run: tiny: output path 'd{40}'\.\.\. is too long for the file system"),
+    ("output-path-too-long", ["run", "{study}", "-o", "d/" * 2100 + "out.nc"],
+     r"^ncstab run: tiny: output path '(d/){20}'\.\.\. is too long for the file system"),
+    ("output-an-archive-without-overwrite", ["run", "{study}", "-o", "{archive}"],
+     r"output .*archive\.nc is an ncstab archive already: pass --overwrite to replace it"),
+    ("output-an-archive-of-another-study-with-resume", ["run", "{study}", "-o", "{archive}", "--resume"],
+     r"archive\.nc is an ncstab archive of another study .*--resume does not replace it"),
+    ("output-the-study-file", ["run", "{study}", "-o", "{study}", "--overwrite"],
+     r"output .*study\.toml is the study file"),
+    ("output-a-device", ["run", "{study}", "-o", "/dev/null", "--overwrite"],
+     r"output /dev/null is a character device: ncstab writes only regular files"),
+    ("output-a-directory-with-overwrite", ["run", "{study}", "-o", "{directory}", "--overwrite"],
+     r"output .*folder is a directory"),
+    ("output-twice-for-two-studies", ["run", "{study}", "{study}"],
+     r"output results/tiny\.nc is also the output of study 'tiny'"),
 ]
 
 
@@ -389,6 +426,13 @@ def _negative_n_steps(path: Path) -> Path:
     return path
 
 
+def _flipped_attribute_name(path: Path) -> Path:
+    # One bit of a global attribute's name in HDF5's metadata: netCDF lists the attributes,
+    # then cannot open one ("Can't open HDF5 attribute"; issue 42: info exited 3).
+    flip_byte(path, path.read_bytes().index(b"study_description"))
+    return path
+
+
 #: (id, how the archive is spoilt, what the line says after "is not a readable ncstab archive: ").
 BAD_ARCHIVES = [
     ("empty", _truncated(0.0), r"the file is empty"),
@@ -415,6 +459,8 @@ BAD_ARCHIVES = [
     ("study-text-invalid", _study_text_invalid, r"its 'study' attribute is not a valid study file \(study\.name"),
     ("study-text-missing", _study_text_missing, r"no 'study' attribute"),
     ("digests-damaged", _damaged_digests, r"attribute 'ncstab_sha256' is damaged"),
+    ("flipped-attribute-name", _flipped_attribute_name,
+     r"its metadata cannot be read \(damaged file\?\): NetCDF: Can't open HDF5 attribute|netCDF cannot open it"),
 ]
 
 
@@ -912,6 +958,250 @@ def test_an_unexpected_error_is_one_line_and_debug_shows_the_traceback(tmp_path,
     assert tree(tmp_path) == {"study.toml"}
 
 
+# --- what is at the output's path: never a user's file (issue 42) --------------------------------
+
+
+def _fifo(path: Path) -> Path:
+    os.mkfifo(path)
+    return path
+
+
+def _study_file_itself(path: Path) -> Path:
+    return path.parent / "study.toml"
+
+
+def _symbolic_link(path: Path) -> Path:
+    (path.parent / "target.txt").write_text("the link's target\n")
+    path.symlink_to(path.parent / "target.txt")
+    return path
+
+
+#: (id, what is put at the output's path, what the line says).
+NOT_OURS = [
+    ("foreign-netcdf4", _foreign_netcdf4, r"exists and is not an ncstab archive: ncstab replaces only its own"),
+    ("netcdf3", _netcdf3, r"exists and is not an ncstab archive"),
+    ("plain-hdf5", _plain_hdf5, r"exists and is not an ncstab archive"),
+    ("text-file", _text_file, r"exists and is not an ncstab archive"),
+    ("the-study-file", _study_file_itself, r"is the study file .*study\.toml"),
+    ("fifo", _fifo, r"is a fifo \(named pipe\): ncstab writes only regular files"),
+    ("symbolic-link", _symbolic_link, r"is a symbolic link: ncstab writes only regular files"),
+]
+
+
+def _snapshot(directory: Path) -> dict[str, tuple]:
+    """Every entry's kind, bytes (regular files) and inode: what 'nothing touched' compares."""
+    snapshot = {}
+    for path in sorted(directory.rglob("*")):
+        status = os.lstat(path)
+        content = path.read_bytes() if path.is_file() and not path.is_symlink() else None
+        snapshot[str(path.relative_to(directory))] = (status.st_mode, status.st_ino, content)
+    return snapshot
+
+
+@pytest.mark.parametrize("overwrite", [[], ["--overwrite"]], ids=["plain", "overwrite"])
+@pytest.mark.parametrize("case_id, make, message", NOT_OURS, ids=[c[0] for c in NOT_OURS])
+def test_an_output_that_is_not_an_ncstab_archive_is_never_replaced(
+    case_id, make, message, overwrite, tmp_path, capfd, monkeypatch
+):
+    computed = []
+    monkeypatch.setattr("ncstab.studies.run_study", lambda *a, **k: computed.append(1))
+    study = write_study(tmp_path, TINY)
+    output = make(tmp_path / "out.nc")
+    before = _snapshot(tmp_path)
+    code, out, err = run_cli(["run", study, "-o", output, *overwrite], capfd)
+    assert code == 2, err
+    assert_one_line(err, rf"^ncstab run: tiny: output {output}", message)
+    assert (out, computed) == ("", []), "nothing run"
+    assert _snapshot(tmp_path) == before, "nothing touched"
+
+
+def test_an_ncstab_archive_is_replaced_only_with_overwrite(tmp_path, capfd):
+    study = write_study(tmp_path, TINY)
+    out = tmp_path / "out.nc"
+    assert run_cli(["run", study, "-o", out], capfd)[0] == 0
+    before = _snapshot(tmp_path)
+    code, _, err = run_cli(["run", study, "-o", out], capfd)
+    assert code == 2
+    assert_one_line(err, rf"^ncstab run: tiny: output {out} is an ncstab archive already: pass --overwrite to "
+                         r"replace it, or give another output \(-o\)$")
+    assert _snapshot(tmp_path) == before, "the archive is untouched"
+    code, out_text, err = run_cli(["run", study, "-o", out, "--overwrite"], capfd)
+    assert (code, err) == (0, "") and "finished: 2" in out_text
+    assert os.stat(out).st_ino != before["out.nc"][1], "replaced by a new file"
+    assert tree(tmp_path) == {"study.toml", "out.nc"}
+    open_study(out)
+
+
+def test_resume_keeps_the_complete_archive_of_its_study(tmp_path, capfd, monkeypatch):
+    """--resume onto the finished archive of the same study: nothing to compute, nothing replaced."""
+    study = write_study(tmp_path, TINY)
+    out = tmp_path / "out.nc"
+    assert run_cli(["run", study, "-o", out], capfd)[0] == 0
+    before = _snapshot(tmp_path)
+    monkeypatch.setattr(chunked_module, "run_chunk", lambda *a: pytest.fail("nothing is computed"))
+    code, _, err = run_cli(["run", study, "-o", out, "--resume"], capfd)
+    assert (code, err) == (0, "")
+    assert _snapshot(tmp_path) == before
+
+
+def test_an_archive_written_after_the_check_is_not_replaced(tmp_path, capfd, monkeypatch):
+    """Another run may write the archive between the check and the run: checked again under the lock."""
+    from ncstab import run_command
+    from ncstab.studies.outputs import claim_output
+    from ncstab.studies.errors import OutputPathError
+
+    archive = tmp_path / "first.nc"
+    assert run_cli(["run", write_study(tmp_path, TINY), "-o", archive], capfd)[0] == 0
+    with pytest.raises(OutputPathError, match="is an ncstab archive already"):
+        with claim_output(archive, protect_existing=True):
+            pytest.fail("not reached")
+    with claim_output(archive, overwrite=True, protect_existing=True):
+        pass
+    with claim_output(archive):  # the library's runs (run_study_chunked) are not the command
+        pass
+
+    out = tmp_path / "out.nc"
+    original = run_command._preflight
+
+    def preflight_then_another_run(study, output, args):
+        original(study, output, args)
+        shutil.copy(archive, output)  # as if another run finished first
+
+    monkeypatch.setattr(run_command, "_preflight", preflight_then_another_run)
+    code, _, err = run_cli(["run", tmp_path / "study.toml", "-o", out], capfd)
+    assert code == 2
+    assert_one_line(err, r"out\.nc is an ncstab archive already")
+    assert out.read_bytes() == archive.read_bytes(), "the other run's archive is kept"
+    assert not lock_path(out).exists()
+
+
+@pytest.mark.parametrize("file, message", [
+    ("../thesis.txt", r"\[output\] file = '\.\./thesis\.txt' of .*study\.toml leaves the directory ncstab run "
+                      r"runs in \('\.\.'\)"),
+    ("sub/../../thesis.txt", r"\[output\] file = 'sub/\.\./\.\./thesis\.txt' .* leaves the directory"),
+    ("{absolute}", r"\[output\] file = '.*thesis\.txt' of .* is an absolute path"),
+])
+def test_a_study_file_cannot_write_outside_the_directory_it_runs_in(file, message, tmp_path, capfd, monkeypatch):
+    """A shared study file's [output] file cannot reach the user's other files (-o can)."""
+    work = tmp_path / "work"
+    work.mkdir()
+    thesis = tmp_path / "thesis.txt"
+    thesis.write_text("three years of work\n")
+    file = file.replace("{absolute}", str(thesis))
+    study = write_study(work, TINY.replace("figures = []", f'figures = []\nfile = "{file}"'))
+    monkeypatch.chdir(work)
+    before = _snapshot(tmp_path)
+    code, _, err = run_cli(["run", study], capfd)
+    assert code == 2
+    assert_one_line(err, r"^ncstab run: tiny: " + message, r"choose the path on the command line with -o")
+    assert _snapshot(tmp_path) == before
+    code, out, err = run_cli(["run", study, "-o", tmp_path / "elsewhere.nc"], capfd)  # the user's choice
+    assert (code, err) == (0, "") and (tmp_path / "elsewhere.nc").exists()
+
+
+def test_a_study_file_output_inside_keeps_its_meaning(tmp_path, capfd, monkeypatch):
+    """A relative [output] file without '..' is relative to the directory ncstab run runs in, as before."""
+    study = write_study(tmp_path, TINY.replace("figures = []", 'figures = []\nfile = "sub/./here.nc"'))
+    monkeypatch.chdir(tmp_path)
+    code, _, err = run_cli(["run", study], capfd)
+    assert (code, err) == (0, "")
+    assert tree(tmp_path) == {"study.toml", "sub", "sub/here.nc"}
+
+
+def test_a_cycle_of_a_billion_turns_is_refused_before_running(tmp_path, capfd, monkeypatch):
+    """The turn tables (33 bytes per case and turn) are estimated first: 66 GB here, exit 2 at once."""
+    computed = []
+    monkeypatch.setattr("ncstab.studies.run_study", lambda *a, **k: computed.append(1))
+    monkeypatch.setattr("ncstab.studies.cycle_limits.available_memory", lambda: 8 * 2**30)
+    study = write_study(tmp_path, TINY.replace("hold = { F2 = 0.0 }\ndrive = { D1 = 0.05 }",
+                                               "cycle = { center = [0.01, 0.0], turns = 1000000000 }"))
+    start = time.monotonic()
+    code, _, err = run_cli(["run", study, "-o", tmp_path / "out.nc"], capfd)
+    assert code == 2 and time.monotonic() - start < 10
+    assert_one_line(err, r"^ncstab run: tiny: loading\[1\]\.cycle\.turns = 1,000,000,000: the turn tables of 2 "
+                         r"case\(s\) x 1,000,000,000 turns need at least 66 GB of memory, more than the 8\.59 GB")
+    assert not computed and tree(tmp_path) == {"study.toml"}
+
+
+def test_the_cycle_turn_estimate_is_what_the_stepper_allocates():
+    """Four float64 and a flag per case and turn (ncstab.paths.compiled_stages' turn tables)."""
+    from ncstab.studies.cycle_limits import TURN_BYTES, check_cycle_turns
+
+    study = parse_study(TINY.replace("hold = { F2 = 0.0 }\ndrive = { D1 = 0.05 }",
+                                     "cycle = { center = [0.01, 0.0], turns = 3 }"))
+    closed, values = np.zeros((2, 3), dtype=bool), np.empty((2, 3, 4))
+    assert check_cycle_turns(study, memory=10**9) == closed.nbytes + values.nbytes == 2 * 3 * TURN_BYTES
+    assert check_cycle_turns(parse_study(TINY), memory=1) == 0.0
+
+
+def test_a_hostile_archive_is_summarised_or_refused_at_once(archive, tmp_path, capfd):
+    """An archive whose study holds a law that sympy would not finish with: info exits 2 in
+    well under 15 s, naming the law's field (it hung for more than 90 s)."""
+    hostile = TINY.replace('names = ["mcnamara"]', 'names = ["w"]\n[laws.w]\n'
+                                                   'energy = "(l + alpha + gamma + alpha0 + 1)**100*(l - 1)**2"')
+    path = copy_archive(archive, tmp_path)
+    edit_archive(path, attribute="study", text=hostile)
+    start = time.monotonic()
+    code, out, err = run_cli(["info", path], capfd)
+    assert code == 2 and time.monotonic() - start < 15
+    assert_one_line(err, r"its 'study' attribute is not a valid study file \(laws\.w\.energy: .*more than 1,000 terms")
+
+
+def test_info_does_not_classify_the_laws_of_an_archive(monkeypatch):
+    """The archive stores the classes: reading its study builds the user laws, classifies none."""
+    import ncstab.symbolic.classification as classification
+    from ncstab.studies.verification import check_study_text
+
+    monkeypatch.setattr(classification, "classify", lambda definition: pytest.fail("classified"))
+    text = TINY.replace('names = ["mcnamara"]', 'names = ["w"]\n[laws.w]\nenergy = "(l - 1)**2/2 + gamma*(alpha - alpha0)**2/2 + l/7"')
+    check_study_text(f"{text}\n# {os.urandom(8).hex()}: a text not seen before\n", "archive.nc")
+
+
+def test_the_symbolic_work_on_a_law_is_stopped_after_its_time_limit(tmp_path, capfd, monkeypatch):
+    """Within the formulas' limits, a law that still takes too long is stopped (SIGALRM), exit 2."""
+    import ncstab.studies.user_laws as user_laws
+
+    monkeypatch.setattr(user_laws, "SYMBOLIC_SECONDS", 0.2)
+    study = write_study(tmp_path, TINY.replace(
+        'names = ["mcnamara"]', 'names = ["w"]\n[laws.w]\nenergy = "(l + alpha + gamma + alpha0 + 1)**6*(l - 1)**2"'))
+    start = time.monotonic()
+    code, _, err = run_cli(["run", study, "-o", tmp_path / "out.nc"], capfd)
+    assert code == 2 and time.monotonic() - start < 10
+    assert_one_line(err, r"laws\.w\.energy: the symbolic work on the law \(energy\) took more than 0\.2 s")
+    assert signal.getsignal(signal.SIGALRM) == signal.SIG_DFL and signal.getitimer(signal.ITIMER_REAL) == (0.0, 0.0)
+    assert tree(tmp_path) == {"study.toml"}
+
+
+def test_running_out_of_memory_is_said_so(tmp_path, capfd, monkeypatch):
+    """llvmlite under ``ulimit -v``: "could not load libllvmlite.so", raised from "failed to map
+    segment": one line saying it is memory, exit 3 (it said "please report it")."""
+    def no_memory(*args, **kwargs):
+        try:
+            raise OSError("/site-packages/llvmlite/binding/libllvmlite.so: failed to map segment from shared object")
+        except OSError:  # what llvmlite raises while handling it
+            raise OSError("Could not find/load shared object file 'libllvmlite.so' from resource location")
+
+    monkeypatch.setattr("ncstab.studies.run_study", no_memory)
+    study = write_study(tmp_path, TINY)
+    code, _, err = run_cli(["run", study, "-o", tmp_path / "out.nc"], capfd)
+    assert code == 3
+    assert_one_line(err, r"^ncstab run: tiny: out of memory \(OSError: .*failed to map segment from shared object\); "
+                         r"nothing more was written")
+    assert "report" not in err and tree(tmp_path) == {"study.toml"}
+
+
+def test_sighup_stops_a_run_as_sigint_does(tmp_path, capfd, monkeypatch):
+    """The terminal closed: one line, exit 3, the finished chunks kept, no lock left (it exited 129)."""
+    study = write_study(tmp_path, FOUR)
+    _interrupted_after(monkeypatch, 2, signal.SIGHUP)
+    code, _, err = run_cli(["run", study, "-o", tmp_path / "out.nc", "--chunk-cases", "1"], capfd)
+    assert code == 3
+    assert_one_line(err, r"^ncstab run: tiny: interrupted by SIGHUP; 2 of 4 chunks kept in .*out\.nc\.parts: "
+                         "rerun with --resume")
+    assert tree(tmp_path) == {"study.toml"} | PARTS_OF_TWO, "no lock left"
+    assert signal.getsignal(signal.SIGHUP) == signal.SIG_DFL
+
+
 # --- faults that need a process of their own -------------------------------------------------------
 
 
@@ -1156,6 +1446,120 @@ def test_a_full_file_system_stops_the_write_in_one_line(tmp_path, capfd, monkeyp
     assert code == 3, err
     assert_one_line(err, r"disk full while writing .*small/out\.nc", r"nothing was written")
     assert left == set()
+
+
+@pytest.mark.parametrize("argv", [["laws", "--all"], ["info", "{archive}"]], ids=["laws", "info"])
+def test_a_reader_that_goes_away_ends_the_command_quietly(argv, archive, tmp_path):
+    """``ncstab laws --all | head -c 5``: the pipe's reader is gone before the output is written
+    (its end is closed before the child starts writing): exit 0, nothing on stderr, five times
+    out of five (it exited 3, "BrokenPipeError", at times)."""
+    argv = [str(archive) if a == "{archive}" else a for a in argv]
+    env = {**os.environ, "PYTHONWARNINGS": "ignore"}
+    for _ in range(5):
+        reader, writer = os.pipe()
+        os.close(reader)  # "head -c 5" that has read its 5 bytes, at the worst moment: before any
+        try:
+            done = subprocess.run([sys.executable, "-m", "ncstab", *argv], stdout=writer, stderr=subprocess.PIPE,
+                                  text=True, timeout=120, env=env, cwd=tmp_path)
+        finally:
+            os.close(writer)
+        assert (done.returncode, done.stderr) == (0, "")
+
+
+@pytest.mark.parametrize("name", ["SIGTERM", "SIGHUP"])
+def test_a_signal_as_the_command_starts_is_one_line_and_exit_3(name):
+    """Before the command's own handlers (the run's cleanup) are set, a signal is one line and
+    exit code 3 too, not a silent death (143, 129)."""
+    code = ("import os, signal, time\n"
+            "import ncstab.cli as cli\n"
+            "def build_parser():\n"
+            f"    os.kill(os.getpid(), signal.{name})\n"
+            "    time.sleep(10)\n"
+            "cli.build_parser = build_parser\n"
+            "cli.main()\n")
+    child = _python(code)
+    _, err = child.communicate(timeout=60)
+    assert child.returncode == 3, err
+    assert_one_line(err, rf"^ncstab: interrupted by {name}; stopped at once \(archives and figures are written "
+                         r"whole or not at all\)$")
+
+
+def test_the_command_ends_as_soon_as_its_work_is_done():
+    """No interpreter finalization after the work (Python puts the default signal handlers back
+    there, and tearing numba down took seconds: a SIGTERM then exited 143, silently): an atexit
+    handler of 30 s is not waited for; the output is complete."""
+    code = ("import atexit, sys, time\n"
+            "atexit.register(time.sleep, 30)\n"
+            "sys.argv = ['ncstab', 'laws']\n"
+            "from ncstab.cli import main\n"
+            "main()\n"
+            "raise SystemExit(99)  # not reached\n")
+    start = time.monotonic()
+    child = _python(code)
+    out, err = child.communicate(timeout=60)
+    assert (child.returncode, err) == (0, "")
+    assert time.monotonic() - start < 25
+    assert out.rstrip().endswith("gamma = k_t/k_n."), "flushed before the process ended"
+
+
+def test_sighup_to_a_running_command_keeps_its_chunks_and_removes_its_lock(tmp_path, reference, capfd):
+    """The terminal of a run closes: SIGHUP stops it as Ctrl-C does (it exited 129 leaving out.nc.lock)."""
+    study = write_study(tmp_path, FOUR)
+    out = tmp_path / "out.nc"
+    child = _python(SLOW_RUN, "run", study, "-o", out, "--chunk-cases", "1")
+    parts = tmp_path / "out.nc.parts"
+    _wait_for(lambda: len(list(parts.glob("*.npz"))) >= 1 or child.poll() is not None, what="a chunk")
+    os.kill(child.pid, signal.SIGHUP)
+    _, err = child.communicate(timeout=60)
+    assert child.returncode == 3, err
+    assert_one_line(err, r"^ncstab run: tiny: interrupted by SIGHUP; \d of 4 chunks kept in .*out\.nc\.parts")
+    left = tree(tmp_path)
+    assert "out.nc.lock" not in left and "out.nc" not in left
+    assert run_cli(["run", study, "-o", out, "--resume"], capfd)[0] == 0
+    assert_same_archive(out, reference)
+
+
+def test_a_damaged_numba_cache_is_compiled_again(tmp_path):
+    """numba's index (.nbi) and data (.nbc) files garbled: the function is compiled again, its
+    entry rewritten, the result right (it exited 3, "UnpicklingError")."""
+    code = ("import sys\n"
+            "from ncstab.generated_modules import compiled_module\n"
+            "def triple(x):\n"
+            "    return 3.0 * x\n"
+            "module = compiled_module('ncstab_fault_catalogue', triple)\n"
+            "print(module.triple(2.5))\n")
+    env = {**os.environ, "PYTHONWARNINGS": "ignore", "NCSTAB_CACHE_DIR": str(tmp_path / "cache")}
+    script = tmp_path / "triple.py"
+    script.write_text(code)
+    first = subprocess.run([sys.executable, script], capture_output=True, text=True, timeout=120, env=env)
+    assert (first.returncode, first.stdout.strip()) == (0, "7.5"), first.stderr
+    entries = sorted((tmp_path / "cache").rglob("*.nb[ic]"))
+    assert {p.suffix for p in entries} == {".nbi", ".nbc"}
+    for entry in entries:
+        entry.write_bytes(b"garbage, not a pickle")
+    second = subprocess.run([sys.executable, script], capture_output=True, text=True, timeout=120, env=env)
+    assert (second.returncode, second.stdout.strip(), second.stderr) == (0, "7.5", "")
+    assert all(entry.read_bytes() != b"garbage, not a pickle" for entry in entries), "rewritten"
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="RLIMIT_AS as ulimit -v on Linux")
+def test_a_run_without_memory_for_the_compiler_says_so(tmp_path):
+    """``ulimit -v 300000``: libllvmlite.so cannot be mapped; one line saying it is memory, exit 3."""
+    import resource
+
+    study = write_study(tmp_path, TINY)
+
+    def limit() -> None:
+        resource.setrlimit(resource.RLIMIT_AS, (300_000 * 1024, 300_000 * 1024))
+
+    env = {**os.environ, "PYTHONWARNINGS": "ignore"}
+    done = subprocess.run([sys.executable, "-m", "ncstab", "run", study, "-o", tmp_path / "out.nc"],
+                          capture_output=True, text=True, timeout=120, env=env, preexec_fn=limit)
+    if done.returncode == 0:
+        pytest.skip("300 MB of address space were enough for llvmlite here")
+    assert done.returncode == 3, done.stderr
+    assert_one_line(done.stderr, r"^ncstab run: (tiny: )?out of memory \(.*\); nothing more was written")
+    assert tree(tmp_path) == {"study.toml"}
 
 
 # --- the machinery, proven against independent computations -----------------------------------------

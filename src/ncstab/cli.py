@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import NoReturn, Sequence
 
 import ncstab
+from ncstab.cli_process import discard_stdout, exit_now, out_of_memory, stdout_closed
 from ncstab.run_command import command_run
 
 __all__ = ["advise_numpy_memory", "build_parser", "main"]
@@ -190,8 +191,9 @@ def build_parser() -> argparse.ArgumentParser:
         parents=[debug],
     )
     run.add_argument("studies", nargs="+", metavar="STUDY.toml", help="study files")
-    run.add_argument("-o", "--output", metavar="OUT.nc", help="archive path (one study only); "
-                     "default results/<study name>.nc")
+    run.add_argument("-o", "--output", metavar="OUT.nc", help="archive path (one study only): absent, or an "
+                     "ncstab archive replaced with --overwrite; default the study's [output] file, else "
+                     "results/<study name>.nc")
     run.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     run.add_argument("--chunk-cases", type=int, metavar="N",
                      help="run in chunks of at most N cases, each kept in OUT.nc.parts/ as it "
@@ -202,8 +204,9 @@ def build_parser() -> argparse.ArgumentParser:
                        help="keep the chunks an interrupted run left in OUT.nc.parts/ and compute "
                             "only the missing ones")
     again.add_argument("--overwrite", action="store_true",
-                       help="discard the chunks an interrupted run left in OUT.nc.parts/ and start over "
-                            "(without --resume or --overwrite, a run refuses to start over them)")
+                       help="replace an existing ncstab archive at OUT.nc, and discard the chunks an "
+                            "interrupted run left in OUT.nc.parts/ (without it, a run refuses both; any "
+                            "other file at OUT.nc is never replaced)")
     run.add_argument("--max-cases", type=int, metavar="N",
                      help="run at most N cases (default: the study's [options] max_cases, 1,000,000 "
                           "unless given)")
@@ -231,8 +234,10 @@ def build_parser() -> argparse.ArgumentParser:
     info.add_argument("archive", metavar="OUT.nc")
     info.set_defaults(handler=command_info)
 
+    from ncstab.analyse_command import add_analyse_parser  # the standard library only
     from ncstab.cache_command import add_cache_parser  # the standard library only
 
+    add_analyse_parser(sub, [debug])
     add_cache_parser(sub, [debug])
     return parser
 
@@ -254,47 +259,98 @@ def advise_numpy_memory() -> None:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the ``ncstab`` command; its exit code (docs/when-things-go-wrong.md).
 
+    Called without ``argv`` (the ``ncstab`` command itself, ``python -m ncstab``),
+    it reads ``sys.argv`` and ends the process when done
+    (:func:`~ncstab.cli_process.exit_now`: a signal after the work cannot
+    end it silently during the interpreter's finalization); with ``argv``
+    (from Python) it returns the exit code.
+
     A named error (:mod:`ncstab.studies.errors`) is printed as one line,
     ``ncstab <command>: <what>; <what was kept>``, and gives its exit code (2
-    invalid input, 3 the run could not complete); SIGINT and SIGTERM stop
-    cleanly with exit code 3; any other error is one line and exit code 3.
-    With ``--debug`` the traceback is shown instead.
+    invalid input, 3 the run could not complete); SIGINT, SIGTERM and SIGHUP
+    stop cleanly with exit code 3 (called as the command, ``argv`` None: also
+    while it starts and ends, :func:`~ncstab.studies.interrupts.stop_at_once_on_signals`);
+    a reader of the output that goes away (``ncstab info A | head -c 5``) ends
+    it quietly, exit code 0; running out of memory is said so, exit code 3;
+    any other error is one line and exit code 3.  With ``--debug`` the
+    traceback is shown instead.
     """
+    if argv is None:
+        try:
+            code = _main(None)
+        except SystemExit as exit_:  # argparse's usage errors, --help, --version
+            code = exit_.code
+        exit_now(code)
+    return _main(argv)
+
+
+def _main(argv: Sequence[str] | None) -> int:
+    """:func:`main`, returning the exit code whatever ``argv``."""
     advise_numpy_memory()
     from ncstab.heap import settled_heap
-    from ncstab.studies.errors import EXIT_RUN_INCOMPLETE, NcstabError, RunError
-    from ncstab.studies.interrupts import stop_on_signals
+    from ncstab.studies.errors import EXIT_RUN_INCOMPLETE
+    from ncstab.studies.interrupts import stop_at_once_on_signals, stop_on_signals
 
+    if argv is None:  # the command's own process: no signal is ever a traceback or a silent death
+        stop_at_once_on_signals("ncstab")
     parser = build_parser()
     args = parser.parse_args(argv)
     if getattr(args, "handler", None) is None:
         parser.print_help()
         return 0
     prefix = f"ncstab {args.command}"
+    if argv is None:
+        stop_at_once_on_signals(prefix)
     debug = bool(getattr(args, "debug", False))
     on_cluster = getattr(args, "workers", None) is not None or getattr(args, "scheduler", None) is not None
-    with stop_on_signals(prefix), _quiet_cluster_logs(on_cluster and not debug), settled_heap():
-        try:
-            return int(args.handler(args))
-        except NcstabError as error:
-            if debug:
-                raise
-            print(f"{prefix}: {_which(error)}{error.line() if isinstance(error, RunError) else error}", file=sys.stderr)
-            return error.exit_code
-        except KeyboardInterrupt as interrupt:
-            if debug:
-                raise
-            name = getattr(interrupt, "signal_name", "SIGINT")
-            kept = getattr(interrupt, "kept", "") or "nothing more was written"
-            print(f"{prefix}: {_which(interrupt)}interrupted by {name}; {kept}", file=sys.stderr)
+    try:
+        with stop_on_signals(prefix), _quiet_cluster_logs(on_cluster and not debug), settled_heap():
+            return _handled(args, prefix, debug)
+    except KeyboardInterrupt as interrupt:  # a signal as the blocks above close, after the handler
+        if debug:
+            raise
+        name = getattr(interrupt, "signal_name", "SIGINT")
+        print(f"{prefix}: interrupted by {name}; nothing more was written", file=sys.stderr)
+        return EXIT_RUN_INCOMPLETE
+
+
+def _handled(args: argparse.Namespace, prefix: str, debug: bool) -> int:
+    """Run the command's handler; each error as one line and its exit code (see :func:`main`)."""
+    from ncstab.studies.errors import EXIT_RUN_INCOMPLETE, NcstabError, RunError
+
+    try:
+        code = int(args.handler(args))
+        sys.stdout.flush()  # a reader gone away is seen here, not at the interpreter's exit
+        return code
+    except BrokenPipeError:
+        if debug or not stdout_closed():
+            raise
+        discard_stdout()
+        return 0
+    except NcstabError as error:
+        if debug:
+            raise
+        print(f"{prefix}: {_which(error)}{error.line() if isinstance(error, RunError) else error}", file=sys.stderr)
+        return error.exit_code
+    except KeyboardInterrupt as interrupt:
+        if debug:
+            raise
+        name = getattr(interrupt, "signal_name", "SIGINT")
+        kept = getattr(interrupt, "kept", "") or "nothing more was written"
+        print(f"{prefix}: {_which(interrupt)}interrupted by {name}; {kept}", file=sys.stderr)
+        return EXIT_RUN_INCOMPLETE
+    except Exception as error:  # a bug: one line, the traceback with --debug
+        if debug:
+            raise
+        first = (str(error).strip().splitlines() or [""])[0]
+        memory = out_of_memory(error)
+        if memory is not None:
+            print(f"{prefix}: {_which(error)}out of memory ({memory}); nothing more was written: free "
+                  "memory or raise the limit (ulimit -v) and run again", file=sys.stderr)
             return EXIT_RUN_INCOMPLETE
-        except Exception as error:  # a bug: one line, the traceback with --debug
-            if debug:
-                raise
-            first = (str(error).strip().splitlines() or [""])[0]
-            print(f"{prefix}: internal error: {type(error).__name__}: {first} (rerun with --debug for the "
-                  "traceback, and please report it)", file=sys.stderr)
-            return EXIT_RUN_INCOMPLETE
+        print(f"{prefix}: {_which(error)}internal error: {type(error).__name__}: {first} (rerun with --debug for the "
+              "traceback, and please report it)", file=sys.stderr)
+        return EXIT_RUN_INCOMPLETE
 
 
 def _which(error: BaseException) -> str:

@@ -81,6 +81,9 @@ def load_named_module(name: str, source: Callable[[], str]) -> Any:
     so that a cached model needs no sympy).  Written atomically; where the cache
     directory cannot be written, a temporary one serves this process only.
     """
+    from ncstab.numba_cache import harden_numba_cache
+
+    harden_numba_cache()  # a damaged .nbi/.nbc beside the module: compiled again, not an error
     # One thread at a time (the threads of a dask worker run chunks side by side):
     # another thread must not find the module half executed.
     with _LOADING:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import os
 import sys
 import time
 from collections.abc import Iterator, Sequence
@@ -17,9 +18,36 @@ __all__ = ["command_run"]
 
 
 def _study_output(study, args: argparse.Namespace) -> Path:
+    """``-o`` (the user's choice, anywhere), else the study's ``[output] file``, kept inside
+    the folder it is resolved in, else ``results/<name>.nc``."""
     from ncstab.studies import default_output_path
 
-    return Path(args.output) if args.output else default_output_path(study)
+    if args.output is not None:
+        return Path(args.output)
+    if study.output:
+        _check_study_output(study)
+    return default_output_path(study)
+
+
+def _check_study_output(study) -> None:
+    """A study file's ``[output] file`` is a relative path without ``..``: resolved in the
+    directory ``ncstab run`` runs in, it stays inside it (a shared study file cannot
+    write anywhere else; ``-o`` can)."""
+    from ncstab.studies.errors import OutputPathError
+
+    where = f" of {study.path}" if study.path else ""
+    raw = study.output
+    if Path(raw).is_absolute() or Path(raw).anchor:
+        raise OutputPathError(
+            f"[output] file = {raw!r}{where} is an absolute path: a study file's output stays inside the "
+            "directory ncstab run runs in; give a relative path such as \"results/study.nc\", or choose the "
+            "path on the command line with -o"
+        )
+    if ".." in Path(raw).parts:
+        raise OutputPathError(
+            f"[output] file = {raw!r}{where} leaves the directory ncstab run runs in ('..'): a study file's "
+            "output stays inside it; give a path without '..', or choose the path on the command line with -o"
+        )
 
 
 def _runs_in_chunks(study, args: argparse.Namespace) -> bool:
@@ -36,6 +64,8 @@ def _check_run_options(args: argparse.Namespace) -> None:
 
     if args.output is not None and len(args.studies) != 1:
         raise InvalidInputError("-o/--output needs exactly one study file")
+    if args.output is not None and not args.output.strip():
+        raise InvalidInputError(f"-o/--output {args.output!r} is empty: give the archive's file name, e.g. out.nc")
     for flag, value in (("--chunk-cases", args.chunk_cases), ("--workers", args.workers),
                         ("--max-cases", args.max_cases)):
         if value is not None and value < 1:
@@ -70,19 +100,22 @@ def _load_studies(paths: Sequence[str]) -> list | None:
     return None if bad else studies
 
 
-def _preflight(study, args: argparse.Namespace) -> Path:
-    """Size limits, then the output path: refused before anything runs (exit code 2 or 3)."""
+def _preflight(study, output: Path, args: argparse.Namespace) -> None:
+    """Size limits, then what is at the output's path (absent, or an ncstab archive and
+    ``--overwrite``): read only, refused before anything runs or is written (exit code 2)."""
     from ncstab.studies.chunked import default_chunk_cases
-    from ncstab.studies.preflight import check_output_path, check_study_size
+    from ncstab.studies.cycle_limits import check_cycle_turns
+    from ncstab.studies.outputs import check_existing_output
+    from ncstab.studies.preflight import check_study_size
 
-    output = _study_output(study, args)
     chunked = _runs_in_chunks(study, args)
     in_memory = None
     if chunked:
         in_memory = (args.chunk_cases or default_chunk_cases(study, args.workers)) * (args.workers or 1)
     check_study_size(study, output, max_cases=args.max_cases, cases_in_memory=in_memory, chunked=chunked)
-    check_output_path(output)
-    return output
+    check_cycle_turns(study, cases_in_memory=in_memory)
+    check_existing_output(output, overwrite=args.overwrite, resume=args.resume, inputs=tuple(args.studies),
+                          study_text=study.text)
 
 
 def _note(study_name: str):
@@ -101,7 +134,8 @@ def _run_one(study, output: Path, args: argparse.Namespace) -> bool:
     progress = _wants_progress(args)
     note = _note(study.name)
     # The lock covers the run, the archive, its parts and its figures.
-    with claim_output(output, resume=args.resume, overwrite=args.overwrite, notify=note):
+    with claim_output(output, resume=args.resume, overwrite=args.overwrite, notify=note, protect_existing=True,
+                      study_text=study.text):
         if _runs_in_chunks(study, args):
             # Large sweeps stream chunk by chunk to the archive: memory bounded by the chunk.
             try:
@@ -170,22 +204,39 @@ def _draw(output: Path, progress: bool = False) -> tuple[list[Path], list[str]]:
 def command_run(args: argparse.Namespace) -> int:
     """Validate every study and check every output first (exit 2 if any is bad), then run, write, draw."""
     from ncstab.dask_probe import defer_dask_array_import
-    from ncstab.studies.errors import NcstabError, RunError, RunInterrupted
+    from ncstab.studies.errors import InvalidInputError, NcstabError, RunError, RunInterrupted
 
     _check_run_options(args)
     defer_dask_array_import()  # xarray's probe for dask arrays without importing dask.array (0.8 s)
     studies = _load_studies(args.studies)
     if studies is None:
         return 2
-    outputs = []
+    outputs: list[Path] = []
     for study in studies:
         try:
-            outputs.append(_preflight(study, args))
+            output = _study_output(study, args)
+            for earlier, other in zip(studies, outputs):
+                if os.path.abspath(other) == os.path.abspath(output):
+                    raise InvalidInputError(f"output {output} is also the output of study {earlier.name!r} "
+                                            f"({earlier.path}): give each study its own output")
+            outputs.append(output)
         except NcstabError as error:
             error.study = study.name  # type: ignore[attr-defined]
             raise
+    from ncstab.studies.preflight import check_output_path
+
+    for check in (lambda study, output: _preflight(study, output, args),  # read only, every study first
+                  lambda study, output: check_output_path(output)):  # then directories and a probe file
+        for study, output in zip(studies, outputs):
+            try:
+                check(study, output)
+            except NcstabError as error:
+                error.study = study.name  # type: ignore[attr-defined]
+                raise
+    from ncstab.numba_cache import harden_numba_cache
     from ncstab.paths.threads import using_threads
 
+    harden_numba_cache()  # a damaged numba cache entry is compiled again, not an error
     any_failed = False
     written: list[Path] = []
     for study, output in zip(studies, outputs):
@@ -197,6 +248,10 @@ def command_run(args: argparse.Namespace) -> int:
             if written and isinstance(error, (RunError, RunInterrupted)):
                 before = "written before: " + ", ".join(map(str, written))
                 error.kept = f"{error.kept}; {before}" if error.kept else before
+            raise
+        except Exception as error:  # out of memory, a bug: the line names the study too
+            with contextlib.suppress(AttributeError, TypeError):
+                error.study = study.name  # type: ignore[attr-defined]
             raise
         written.append(output)
     return 1 if any_failed else 0

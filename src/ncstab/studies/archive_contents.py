@@ -218,14 +218,19 @@ def open_archive_contents(path: str | os.PathLike[str]) -> Iterator[ArchiveConte
     except Exception as error:  # OSError, RuntimeError...: as opened() says it
         raise ArchiveError(path, f"netCDF cannot open it ({error})") from None
     with dataset:
-        dataset.set_auto_maskandscale(False)
-        if needs_xarray(dataset):
-            yield None  # type: ignore[misc]
-            return
-        contents = ArchiveContents(dataset)
-        check_digests(contents, path)
-        contents.attrs.pop(DIGEST_ATTRIBUTE, None)
-        check_archive(contents, path)
-        if dataset.data_model.startswith("NETCDF4"):
-            check_compressed_chunks(path)
-        yield contents
+        try:
+            dataset.set_auto_maskandscale(False)
+            if needs_xarray(dataset):
+                contents = None
+            else:
+                contents = ArchiveContents(dataset)
+                check_digests(contents, path)
+                contents.attrs.pop(DIGEST_ATTRIBUTE, None)
+                check_archive(contents, path)
+                if dataset.data_model.startswith("NETCDF4"):
+                    check_compressed_chunks(path)
+        except ArchiveError:
+            raise
+        except Exception as error:  # noqa: BLE001 - damaged metadata: netCDF raises AttributeError, RuntimeError...
+            raise ArchiveError(path, f"its metadata cannot be read (damaged file?): {error}") from None
+        yield contents  # type: ignore[misc]

@@ -205,13 +205,13 @@ class ClusterError(RunError):
 
 
 class RunInterrupted(KeyboardInterrupt):
-    """The run was stopped by SIGINT or SIGTERM (a ``KeyboardInterrupt``, so that
+    """The run was stopped by SIGINT, SIGTERM or SIGHUP (a ``KeyboardInterrupt``, so that
     nothing catching ``Exception`` swallows it).
 
     Attributes
     ----------
     signal_name
-        ``"SIGINT"`` or ``"SIGTERM"``.
+        ``"SIGINT"``, ``"SIGTERM"`` or ``"SIGHUP"``.
     kept
         What is left on disk, in words (set by the runner that was interrupted).
     """

@@ -71,7 +71,7 @@ def _existing_ancestor(path: FilePath) -> FilePath:
         try:
             if candidate.exists():
                 return candidate
-        except PermissionError:
+        except OSError:  # this user may not search it, or its name is too long
             continue
     return FilePath(".")  # pragma: no cover - the root exists
 
@@ -85,18 +85,53 @@ def check_output_path(output: str | os.PathLike[str]) -> None:
     Raises
     ------
     OutputPathError
-        The path is a directory, a parent is a file, or the name is too long
-        for the file system (with room for ncstab's temporaries) -- exit code 2.
+        The path is empty or a directory, a parent is a file, a ``..`` follows
+        a directory that does not exist, or a name (of the archive or of a
+        directory on the way) or the whole path is too long for the file
+        system (with room for ncstab's temporaries) -- exit code 2.
     OutputNotWritableError
         The directory cannot be created or written -- exit code 3.
     DiskFullError
         Not even the probe fits -- exit code 3.
     """
+    if not str(output):
+        raise OutputPathError("output '' is empty: give the archive's file name, e.g. out.nc")
     output = FilePath(output)
     try:
         _check_output_path(output)
     except PermissionError as error:  # a directory on the way that this user may not even search
         raise OutputNotWritableError(f"cannot reach {output.parent}: {error.strerror}") from None
+    except OSError as error:
+        if error.errno == errno.ENAMETOOLONG:
+            raise OutputPathError(f"output path {str(output)[:40]!r}... is too long for the file system "
+                                  f"({error.strerror})") from None
+        raise
+
+
+def _check_dotdot(output: FilePath) -> None:
+    """Refuse a ``..`` after a directory that does not exist: ``nosuch/../out.nc`` would
+    otherwise create ``nosuch`` to resolve it."""
+    so_far = FilePath(output.anchor) if output.is_absolute() else FilePath()
+    missing = None
+    for part in output.parent.parts[1 if output.is_absolute() else 0:]:
+        if part == ".." and missing is not None:
+            raise OutputPathError(
+                f"output {output}: {missing} does not exist, so {missing}/.. cannot be resolved; "
+                "give the path without it"
+            )
+        so_far = so_far / part
+        if missing is None and part != ".." and not os.path.lexists(so_far):
+            missing = so_far
+
+
+def _check_name_lengths(output: FilePath, name_max: int) -> None:
+    """Each directory on the way fits the file system's longest name."""
+    for part in output.parent.parts:
+        if len(part.encode()) > name_max:
+            raise OutputPathError(
+                f"output {str(output)[:40]!r}...: the directory name {part[:20]!r}... is {len(part.encode())} "
+                f"bytes long, and the file system allows {name_max} per name"
+            )
 
 
 def _check_output_path(output: FilePath) -> None:
@@ -112,6 +147,8 @@ def _check_output_path(output: FilePath) -> None:
         path_max = os.pathconf(ancestor, "PC_PATH_MAX")
     except (OSError, ValueError, AttributeError):  # pragma: no cover - no pathconf
         name_max, path_max = 255, 4096
+    _check_name_lengths(output, name_max)
+    _check_dotdot(output)
     name_bytes = len(output.name.encode())
     longest = max(name_bytes + _NAME_MARGIN, len(output.stem.encode()) + _FIGURE_MARGIN)
     if longest > name_max:

@@ -191,6 +191,12 @@ OPTION_FIELDS = {f.name: f for f in dataclasses.fields(PathOptions)}
 OPTION_NAME_PATTERN = re.compile(r"PathOptions\.(\w+)")
 
 
+#: The largest whole-number engine options: Newton iterations per step (each costs a
+#: solve of the system) and accepted steps per case (the compiled stepper counts them
+#: in 32-bit integers' range; the size estimates multiply them).
+INTEGER_OPTION_LIMITS = {"newton_max_iter": 1000, "max_steps": 1_000_000_000}
+
+
 def options_section(data: Mapping[str, Any], errors: FieldErrors) -> tuple[PathOptions, int]:
     """Engine options (:class:`PathOptions`) and the study's ``max_cases``."""
     table = read_table(data, "options", errors) or {}
@@ -216,6 +222,10 @@ def options_section(data: Mapping[str, Any], errors: FieldErrors) -> tuple[PathO
         elif kinds == ["int"]:
             if isinstance(raw, bool) or not isinstance(raw, int):
                 errors.add(field, f"expected a whole number, got {toml_type(raw)} ({raw!r})")
+                continue
+            largest = INTEGER_OPTION_LIMITS.get(name, INTEGER_OPTION_LIMITS["max_steps"])
+            if raw > largest:
+                errors.add(field, f"expected a whole number from 1 to {largest:,}, got {raw:,}"[:200])
                 continue
             value = raw
         else:

@@ -16,12 +16,24 @@ then is classified (:func:`ncstab.symbolic.classify`), so that a law that
 cannot be derived is reported with the study file's other errors, before
 anything runs.  Errors are reported by field: ``laws.my_law.tangential``,
 ``laws.my_law.parameters.mu.min``.
+
+The symbolic work is bounded: formulas are limited before sympy sees them
+(:mod:`ncstab.laws.formula`: length, terms once expanded, exponents,
+numbers), and building and classifying one law gets at most
+:data:`SYMBOLIC_SECONDS` (:func:`symbolic_time_limit`, in the main thread).
+Reading an archive's study text (``ncstab info``, ``ncstab plot``) does not
+classify its user laws (:func:`without_classification`): the archive stores
+their classes.
 """
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import math
-from collections.abc import Callable, Mapping
+import signal
+import threading
+from collections.abc import Callable, Iterator, Mapping
 from typing import Any
 
 from ncstab.laws.definition import LawDefinition, ParameterSpec
@@ -31,9 +43,57 @@ from ncstab.laws.user import FORCE_KEYS, LAW_KEYS, PARAMETER_KEYS, user_law
 from ncstab.paths.variables import RESERVED_NAMES
 from ncstab.studies.expressions import ExpressionError, evaluate_expression
 
-__all__ = ["user_laws_from_tables"]
+__all__ = ["SYMBOLIC_SECONDS", "SymbolicTimeout", "symbolic_time_limit", "user_laws_from_tables",
+           "without_classification"]
 
 AddError = Callable[[str, str], None]
+
+#: Seconds of symbolic work (building a law from its formulas and classifying it) one
+#: user law may take: within the formulas' limits the slowest measured took 2 s.
+SYMBOLIC_SECONDS = 30.0
+#: Whether user laws are classified as they are read (not when an archive's study text is checked).
+_CLASSIFY: contextvars.ContextVar[bool] = contextvars.ContextVar("ncstab_classify_user_laws", default=True)
+
+
+class SymbolicTimeout(BaseException):
+    """The symbolic work on a law took longer than its time limit (a ``BaseException``, so that
+    no ``except Exception`` inside sympy swallows it)."""
+
+
+@contextlib.contextmanager
+def symbolic_time_limit(seconds: float | None = None) -> Iterator[None]:
+    """Raise :class:`SymbolicTimeout` in the block after ``seconds`` of wall-clock time
+    (default :data:`SYMBOLIC_SECONDS`).
+
+    A ``SIGALRM`` timer, so in the main thread only (elsewhere, and where
+    ``setitimer`` is missing, the block runs unbounded); an outer timer is
+    not supported (none is set by ncstab).
+    """
+    seconds = SYMBOLIC_SECONDS if seconds is None else seconds
+    if threading.current_thread() is not threading.main_thread() or not hasattr(signal, "setitimer"):
+        yield
+        return
+
+    def expired(number: int, frame: object) -> None:
+        raise SymbolicTimeout(f"more than {seconds:g} s")
+
+    previous = signal.signal(signal.SIGALRM, expired)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+@contextlib.contextmanager
+def without_classification() -> Iterator[None]:
+    """User laws read inside the block are built from their formulas but not classified."""
+    token = _CLASSIFY.set(False)
+    try:
+        yield
+    finally:
+        _CLASSIFY.reset(token)
 
 
 def _field(name: str, key: str) -> str:
@@ -92,19 +152,29 @@ def _one_law(name: str, table: Mapping[str, Any], add: AddError, reserved: set[s
         if parameters is None:
             return None
     try:
-        definition = user_law(
-            name,
-            **{key: table[key] for key in FORCE_KEYS if key in table},
-            parameters=parameters,
-            description=table.get("description", ""),
-        )
-    except UserLawError as error:
-        add(_field(name, error.key), error.detail)
-        return None
-    try:
-        classify(definition)
-    except Exception as error:  # noqa: BLE001 - sympy may fail on any formula; the user is told which
-        add(_field(name, ""), f"cannot be classified ({type(error).__name__}: {error}); simplify the formulas")
+        with symbolic_time_limit():
+            try:
+                definition = user_law(
+                    name,
+                    **{key: table[key] for key in FORCE_KEYS if key in table},
+                    parameters=parameters,
+                    description=table.get("description", ""),
+                )
+            except UserLawError as error:
+                add(_field(name, error.key), error.detail)
+                return None
+            if not _CLASSIFY.get():
+                return definition
+            try:
+                classify(definition)
+            except Exception as error:  # noqa: BLE001 - sympy may fail on any formula; the user is told which
+                add(_field(name, ""), f"cannot be classified ({type(error).__name__}: {error}); simplify the formulas")
+                return None
+    except SymbolicTimeout:
+        given = [key for key in FORCE_KEYS if key in table]
+        add(_field(name, given[0] if len(given) == 1 else ""),
+            f"the symbolic work on the law ({', '.join(given)}) took more than {SYMBOLIC_SECONDS:g} s and was "
+            "stopped; simplify the formulas")
         return None
     return definition
 

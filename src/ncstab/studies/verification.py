@@ -152,7 +152,8 @@ def verified(dataset: "xr.Dataset", path: str | os.PathLike[str]) -> "xr.Dataset
 def check_study_text(study: str, path: str | os.PathLike[str]) -> None:
     """Check that an archive's ``study`` attribute is a valid study file.
 
-    Parsing a study needs the law catalogue and sympy (a second): a text found
+    Its user laws are built from their formulas (bounded: :mod:`ncstab.laws.formula`)
+    but not classified.  Parsing a study needs the law catalogue and sympy (a second): a text found
     valid is remembered in the cache directory (:mod:`ncstab.cache`, keyed by
     the SHA-256 of the text and the ncstab version), so the next archive of
     the same study -- and the next ``ncstab info`` -- skips the parse.
@@ -167,9 +168,11 @@ def check_study_text(study: str, path: str | os.PathLike[str]) -> None:
     if read_entry(VALID_STUDIES_KIND, _study_key(study)) == {"valid": True}:
         return
     from ncstab.studies.study import StudyFileError, parse_study
+    from ncstab.studies.user_laws import without_classification
 
     try:
-        parse_study(study, "<archive>")
+        with without_classification():  # the archive stores the classes: no symbolic work to read it
+            parse_study(study, "<archive>")
     except StudyFileError as error:
         field, message = error.errors[0]
         raise ArchiveError(path, f"its 'study' attribute is not a valid study file ({field}: {message})") from None
