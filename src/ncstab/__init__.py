@@ -3,6 +3,7 @@
 The main entry points:
 
 * :func:`ncstab.follow` -- follow a loading programme for laws and sweeps;
+* :func:`ncstab.analyse` -- K, Hill's eigenvalue and modes of a granular packing;
 * :func:`ncstab.make_law`, :class:`ncstab.DiamondChain`,
   :func:`ncstab.tangent_operator` -- the building blocks.
 
@@ -18,13 +19,14 @@ from ncstab.lazy_imports import lazy_attributes
 
 __version__ = "0.1.0"
 
-__all__ = ["DiamondChain", "PathOptions", "SystemSpec", "follow", "make_law", "open_study", "tangent_operator", "__version__"]
+__all__ = ["DiamondChain", "PathOptions", "SystemSpec", "analyse", "follow", "make_law", "open_study", "tangent_operator", "__version__"]
 
 __getattr__, __dir__ = lazy_attributes(
     __name__,
     {
         "DiamondChain": "ncstab.systems",
         "PathOptions": "ncstab.paths",
+        "analyse": "ncstab.analyse_command",
         "SystemSpec": "ncstab.paths",
         "follow": "ncstab.paths",
         "make_law": "ncstab.laws",
@@ -35,6 +37,7 @@ __getattr__, __dir__ = lazy_attributes(
 )
 
 if TYPE_CHECKING:  # pragma: no cover
+    from ncstab.analyse_command import analyse
     from ncstab.laws import make_law
     from ncstab.operators import tangent_operator
     from ncstab.paths import PathOptions, SystemSpec, follow

@@ -1,0 +1,247 @@
+"""``ncstab analyse PACKING.nc --law NAME``: K, Hill's eigenvalue, inertia and modes of a packing, as an archive.
+
+:func:`analyse` reads and validates the packing (:mod:`ncstab.systems.packing`:
+a malformed one is an :class:`~ncstab.systems.packing.PackingError`, exit code
+2, nothing written), assembles K with the law
+(:mod:`ncstab.operators.packing_analysis`) and returns the archive as an
+``xarray.Dataset`` (written to ``output`` when given: to a temporary file
+beside it, then renamed, so that a failed write leaves nothing).  Every variable
+has ``units``, ``long_name`` and ``description``; docs/packings.md lists them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+from typing import Any
+
+__all__ = ["add_analyse_parser", "analyse", "analysis_dataset", "command_analyse", "default_analysis_path"]
+
+
+def default_analysis_path(packing: str | os.PathLike[str]) -> Path:
+    """``results/<file stem>_analysis.nc``."""
+    return Path("results") / f"{Path(packing).stem}_analysis.nc"
+
+
+def _law(name: str):
+    from ncstab.laws.definition import LawDefinition
+    from ncstab.laws.registry import law_definition
+    from ncstab.studies.errors import InvalidInputError
+
+    try:
+        law = law_definition(name)
+    except ValueError as error:
+        raise InvalidInputError(f"--law: {error}") from None
+    if not isinstance(law, LawDefinition):
+        raise InvalidInputError(f"--law: {name!r} is a spring law, not a contact law")
+    return law
+
+
+def analyse(packing: Any, law: str | Any = "mcnamara", gamma: float = 1.0, modes: int = 6,
+            output: str | os.PathLike[str] | None = None, loops: bool = False):
+    """Analyse a packing: the archive of ``ncstab analyse`` as an ``xarray.Dataset``.
+
+    Parameters
+    ----------
+    packing
+        A packing file's path, or a :class:`~ncstab.systems.packing.Packing`.
+    law
+        A law name of the catalogue (``"cundall_strack"``, ``"mcnamara+no_tension"``),
+        or a law definition (a user law).
+    gamma
+        k_t / k_n (seed Eq. 37).
+    modes
+        How many of the smallest eigenpairs of K_sym to keep.
+    output
+        Where to write the archive (NetCDF); None: not written.
+    loops
+        Also the grain loops, by increasing Hill eigenvalue as rings
+        (:mod:`ncstab.systems.mesostructures`): ``loop_hill``, ``loop_length``,
+        ``loop_grains`` along ``loop``.
+    """
+    import numpy as np
+
+    from ncstab.operators.packing_analysis import analyse_packing
+    from ncstab.studies.errors import InvalidInputError
+    from ncstab.systems.packing import Packing, read_packing
+
+    if not np.isfinite(gamma) or gamma < 0:
+        raise InvalidInputError(f"--gamma: {gamma!r} is not a non-negative number")
+    if int(modes) < 0:
+        raise InvalidInputError(f"--modes: {modes!r} is negative")
+    definition = _law(law) if isinstance(law, str) else law
+    value = packing if isinstance(packing, Packing) else read_packing(packing)
+    result = analyse_packing(value, definition, float(gamma), int(modes))
+    dataset = analysis_dataset(value, result, definition.name, float(gamma))
+    if loops:
+        dataset = dataset.merge(loop_variables(value, result))
+    if output is not None:
+        write_analysis(dataset, output)
+    return dataset
+
+
+def _attrs(units: str, long_name: str, description: str, **more: Any) -> dict[str, Any]:
+    return {"units": units, "long_name": long_name, "description": description, **more}
+
+
+def analysis_dataset(packing, result, law_name: str, gamma: float):
+    """The archive of an analysis (:class:`~ncstab.operators.packing_analysis.PackingAnalysis`)."""
+    import numpy as np
+    import xarray as xr
+
+    import ncstab
+    from ncstab.operators.packing_analysis import mode_components
+    from ncstab.systems.packing import ATTRIBUTES
+
+    K = result.tangent.K.tocoo()
+    stiffness = "k_n (per mean grain diameter for x, y; times it for theta)"
+    tol = {"tolerance": result.tolerance, "tolerance_rule": "|lambda| <= 1e-9 max |diag K_sym|"}
+    grain_vars = {name: ("grain", getattr(packing, name) if name != "fixed" else packing.fixed.astype(np.int8),
+                         _attrs(*ATTRIBUTES[name])) for name in ("x", "y", "radius", "fixed")}
+    contact_vars = {
+        "grain_a": ("contact", packing.contacts[:, 0].astype(np.int32), _attrs(*ATTRIBUTES["grain_a"])),
+        "grain_b": ("contact", packing.contacts[:, 1].astype(np.int32), _attrs(*ATTRIBUTES["grain_b"])),
+        "normal_force": ("contact", result.tangent.forces[:, 0], _attrs(*ATTRIBUTES["normal_force"])),
+        "tangential_force": ("contact", result.tangent.forces[:, 1], _attrs(*ATTRIBUTES["tangential_force"])),
+        "contact_scale": ("contact", result.tangent.contacts.scale, _attrs(
+            "mean grain diameter", "contact length scale rho",
+            "rest length of the contact's normal law, rho = |d| + N; the law sees l = |d|/rho (docs/packings.md)")),
+        "contact_alpha0": ("contact", np.asarray(np.broadcast_to(result.tangent.parameters["alpha0"],
+                                                                 (packing.n_contacts,)), dtype=float), _attrs(
+            "rad", "contact reference angle alpha0",
+            "the law's alpha0: its tangential force at the state is the packing's (beta = alpha at the state)")),
+    }
+    free = packing.free
+    data = {
+        "hill": ((), result.hill, _attrs(stiffness, "Hill's eigenvalue",
+                                          "smallest eigenvalue of K_sym = (K + K^T)/2 over the free dofs; "
+                                          "Hill's condition holds while it is positive")),
+        "negative_eigenvalues": ((), np.int32(result.negative_eigenvalues), _attrs(
+            "1", "negative eigenvalues of K_sym", "count of eigenvalues below -tolerance (Sylvester's inertia)",
+            **tol)),
+        "zero_eigenvalues": ((), np.int32(result.zero_eigenvalues), _attrs(
+            "1", "zero eigenvalues of K_sym", "count of eigenvalues within +-tolerance (Sylvester's inertia)",
+            **tol)),
+        "det_K_sign": ((), np.int8(result.det_sign), _attrs(
+            "1", "sign of det K", "-1, 0 or 1 (0: K is singular: no held grain, a free grain without contact, "
+            "or zero eigenvalues of a symmetric K)")),
+        "K_asymmetry": ((), result.asymmetry, _attrs("1", "asymmetry of K", "max |K - K^T| / max |K|")),
+        "mode_eigenvalue": (("mode",), result.mode_values, _attrs(
+            stiffness, "eigenvalue of K_sym", "the smallest eigenvalues of K_sym, ascending")),
+        "mode": (("mode", "grain", "component"), mode_components(packing, result.modes), _attrs(
+            "1 (x, y: mean grain diameter; theta: rad, per unit mode)", "eigenvector of K_sym",
+            "unit eigenvector over the free dofs, per grain and component (held grains 0), largest entry positive")),
+        "participation": (("mode", "grain"), result.participation, _attrs(
+            "1", "participation of each grain in the mode",
+            "share of the mode's squared norm on the grain's three dofs (sums to 1 over the grains)")),
+        "K_row": (("nonzero",), K.row.astype(np.int32), _attrs("1", "row of K", "index into the free dofs")),
+        "K_col": (("nonzero",), K.col.astype(np.int32), _attrs("1", "column of K", "index into the free dofs")),
+        "K_value": (("nonzero",), K.data, _attrs(stiffness, "entry of K", "K[K_row, K_col] = K_value (coordinate "
+                                                  "form; free dofs x<i>, y<i>, theta<i> in grain order)")),
+        "R": (("dof",), result.tangent.R, _attrs(
+            "k_n mean grain diameter (theta: times the diameter)", "internal generalized force",
+            "R = sum_c rho^2 J^T Q* over the free dofs: equal to the applied loads at an equilibrium")),
+        "dof_grain": (("dof",), np.repeat(free, 3).astype(np.int32), _attrs("1", "grain of the dof",
+                                                                            "0-based grain index of each free dof")),
+        **grain_vars, **contact_vars,
+    }
+    coords = {"component": ("component", np.array(["x", "y", "theta"]), _attrs(
+        "1", "dof component", "x, y: translations of the grain's centre; theta: its rotation"))}
+    dataset = xr.Dataset({name: (dims, value, attrs) for name, (dims, value, attrs) in data.items()}, coords=coords)
+    dataset.attrs.update({"title": "ncstab packing analysis", "Conventions": "CF-1.8", "law": law_name,
+                          "gamma": gamma, "packing": packing.source, "n_grains": packing.n_grains,
+                          "n_contacts": packing.n_contacts, "n_dof": int(result.tangent.K.shape[0]),
+                          "ncstab_version": ncstab.__version__,
+                          "source": "ncstab analyse (docs/packings.md)"})
+    return dataset
+
+
+def loop_variables(packing, result):
+    """The grain loops as archive variables, the loops that lose Hill's condition first coming first."""
+    import numpy as np
+    import xarray as xr
+
+    from ncstab.systems.mesostructures import grain_loops, loop_stiffness
+
+    found = grain_loops(packing)
+    hill = loop_stiffness(packing, found, result.tangent.blocks)
+    order = np.argsort(hill, kind="stable")
+    stiffness = "k_n (per mean grain diameter for x, y; times it for theta)"
+    return xr.Dataset({
+        "loop_hill": (("loop",), hill[order], _attrs(
+            stiffness, "Hill's eigenvalue of the loop as a ring",
+            "smallest eigenvalue of the ring's K_sym on its deformations (rigid motions excluded); ascending: "
+            "the loops that lose Hill's condition first come first")),
+        "loop_length": (("loop",), found.lengths[order].astype(np.int32), _attrs(
+            "1", "grains in the loop", "number of grains (and contacts) of the loop")),
+        "loop_grains": (("loop", "loop_member"), found.padded()[order].astype(np.int32), _attrs(
+            "1", "grains of the loop", "0-based grain indices around the loop, -1 past its end")),
+    })
+
+
+def write_analysis(dataset, output: str | os.PathLike[str]) -> Path:
+    """Write the archive atomically (a temporary file beside it, then renamed); errors as RunError (exit 3)."""
+    from ncstab.studies.errors import OutputPathError, WriteError, write_error
+
+    path = Path(output)
+    if path.is_dir():
+        raise OutputPathError(f"-o: {path} is a directory, not an archive path")
+    temporary = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        dataset.to_netcdf(temporary)
+        os.replace(temporary, path)
+    except (OSError, RuntimeError) as error:
+        if temporary.exists():
+            temporary.unlink()
+        raise (write_error(error, path) or WriteError(f"could not write {path}: {error}")) from None
+    return path
+
+
+def command_analyse(args: argparse.Namespace) -> int:
+    """``ncstab analyse``: write the archive and print its path and Hill's eigenvalue."""
+    import numpy as np
+
+    output = Path(args.output) if args.output else default_analysis_path(args.packing)
+    try:
+        dataset = analyse(args.packing, args.law, args.gamma, args.modes, output=output, loops=args.loops)
+    except np.linalg.LinAlgError as error:
+        from ncstab.studies.errors import RunError
+
+        raise RunError(f"could not complete the analysis of {args.packing}: {error}", "nothing was written") from None
+    except RuntimeError as error:
+        from ncstab.studies.errors import RunError
+
+        if "ARPACK" in str(error) or "singular" in str(error).lower() or "factor" in str(error).lower():
+            raise RunError(f"could not complete the analysis of {args.packing}: {error}",
+                           "nothing was written") from None
+        raise
+    print(f"{output}: hill = {float(dataset.hill):.6g}, negative eigenvalues = {int(dataset.negative_eigenvalues)}, "
+          f"zero eigenvalues = {int(dataset.zero_eigenvalues)}, sign det K = {int(dataset.det_K_sign)}")
+    if args.loops and dataset.sizes.get("loop", 0):
+        lost = int((dataset.loop_hill < 0).sum())
+        print(f"{dataset.sizes['loop']} grain loops, {lost} without Hill's condition; lowest loop Hill eigenvalue "
+              f"{float(dataset.loop_hill[0]):.6g}")
+    return 0
+
+
+def add_analyse_parser(sub, parents: list) -> None:
+    """The ``analyse`` subcommand (standard library only at import)."""
+    parser = sub.add_parser(
+        "analyse", parents=parents,
+        help="analyse a granular packing: K, Hill's eigenvalue, inertia, modes (docs/packings.md)",
+        description="Assemble K of a packing file (NetCDF: grains, contacts, forces) with a contact law and "
+        "write Hill's eigenvalue, the inertia of K_sym, the sign of det K, the smallest modes with each "
+        "grain's participation, and K itself. Exit code 2: invalid packing or option, nothing written; "
+        "3: the analysis or the write could not complete.")
+    parser.add_argument("packing", metavar="PACKING.nc", help="the packing file")
+    parser.add_argument("--law", required=True, metavar="NAME", help="a contact law (ncstab laws lists them)")
+    parser.add_argument("--gamma", type=float, default=1.0, metavar="G", help="k_t/k_n (default 1)")
+    parser.add_argument("--modes", type=int, default=6, metavar="K",
+                        help="how many of the smallest eigenpairs of K_sym to keep (default 6)")
+    parser.add_argument("--loops", action="store_true",
+                        help="also the grain loops with their own Hill eigenvalue as rings, lowest first")
+    parser.add_argument("-o", "--output", metavar="OUT.nc",
+                        help="archive path (default results/<packing stem>_analysis.nc)")
+    parser.set_defaults(handler=command_analyse)

@@ -1,0 +1,264 @@
+"""Readers of DEM outputs into a packing (:mod:`ncstab.systems.packing`): LAMMPS, LIGGGHTS, YADE, CSV.
+
+Every reader returns a validated :class:`~ncstab.systems.packing.Packing` in
+the packing file's units (docs/packings.md): lengths divided by the mean grain
+diameter d, forces by ``kn * d`` (``kn`` the DEM's normal stiffness, in the
+DEM's units: force per length).  From a contact force F that grain a exerts on
+grain b, with n the unit vector from a to b and t = n turned by +90 degrees:
+N = F . n and T = -F . t (:mod:`ncstab.elements.grain_contact`).  Only x and y
+are read (a 2D packing: z and the other columns are ignored).  Grains are held
+by ``fixed_types`` (a LAMMPS atom type, e.g. wall grains) and/or ``fixed_ids``.
+
+* :func:`read_lammps` -- a LAMMPS or LIGGGHTS ``dump`` of atoms
+  (``ITEM: ATOMS id type x y ... radius``) and, optionally, a ``dump local``
+  of the contacts.  LIGGGHTS: ``compute pair/gran/local id force`` (columns
+  id1 id2 periodic-flag fx fy fz: :data:`LIGGGHTS_ID_FORCE`); LAMMPS:
+  ``compute property/local patom1 patom2`` with ``compute pair/local fx fy fz``
+  dumped together (:data:`LAMMPS_PAIR_LOCAL`).  In both, (fx, fy, fz) is the
+  force on the first atom of the pair (pair styles' ``f[i] += fx``).  Any other
+  layout: ``columns`` names the columns by index or header name.  Without a
+  ``dump local``, contacts are the overlapping pairs and forces are 0.
+* :func:`read_yade` -- the text export written by the YADE script of
+  docs/packings.md (``B id x y radius fixed`` and ``I id1 id2 fx fy`` lines,
+  F the force of id1 on id2).
+* :func:`read_csv` -- a grains table (``x,y,radius[,fixed][,id]``) and an
+  optional contacts table (``a,b[,normal_force,tangential_force]`` with grain
+  ids, or ``a,b,fx,fy``: the force of a on b).
+
+The readers were tested on small files written from the formats' documentation
+(tests/test_packing_readers.py), not on output of the codes themselves.
+"""
+
+from __future__ import annotations
+
+import io
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from ncstab.systems.packing import Packing, PackingError, contacts_from_geometry, validate
+
+__all__ = ["LAMMPS_PAIR_LOCAL", "LIGGGHTS_ID_FORCE", "packing_from_arrays", "read_csv", "read_dump",
+           "read_lammps", "read_yade"]
+
+#: ``compute pair/gran/local id force`` (LIGGGHTS): id1 id2 periodic-flag fx fy fz, force on id1.
+LIGGGHTS_ID_FORCE = {"id1": 0, "id2": 1, "fx": 3, "fy": 4}
+#: ``dump local c_ids[1] c_ids[2] c_pair[1] c_pair[2] c_pair[3]`` (LAMMPS property/local patom1 patom2 and
+#: pair/local fx fy fz): force on id1.
+LAMMPS_PAIR_LOCAL = {"id1": 0, "id2": 1, "fx": 2, "fy": 3}
+
+
+def read_dump(path: str | Path, item: str = "ATOMS", timestep: int | None = None) -> tuple[list[str], np.ndarray]:
+    """The column names and the table of one snapshot of a LAMMPS/LIGGGHTS text dump (the last, or ``timestep``).
+
+    ``item`` is ``"ATOMS"`` (``dump atom/custom``) or ``"ENTRIES"`` (``dump local``).
+    """
+    path = Path(path)
+    try:
+        lines = path.read_text().splitlines()
+    except OSError as error:
+        raise PackingError(f"cannot read {path}: {error}") from None
+    starts = [i for i, line in enumerate(lines) if line.startswith("ITEM: TIMESTEP")]
+    if not starts:
+        raise PackingError(f"{path}: not a LAMMPS dump (no 'ITEM: TIMESTEP' line)")
+    chosen = starts[-1]
+    if timestep is not None:
+        found = [i for i in starts if int(lines[i + 1].split()[0]) == timestep]
+        if not found:
+            raise PackingError(f"{path}: no snapshot at timestep {timestep}")
+        chosen = found[0]
+    end = next((i for i in starts if i > chosen), len(lines))
+    header = next((i for i in range(chosen, end) if lines[i].startswith(f"ITEM: {item}")), None)
+    if header is None:
+        raise PackingError(f"{path}: the snapshot has no 'ITEM: {item}' section")
+    names = lines[header].split()[2:]
+    body = "\n".join(lines[header + 1:end])
+    table = np.loadtxt(io.StringIO(body), ndmin=2) if body.strip() else np.zeros((0, len(names)))
+    if table.shape[1] != len(names):
+        raise PackingError(f"{path}: {table.shape[1]} columns for the {len(names)} names of 'ITEM: {item}'")
+    return names, table
+
+
+def _column(names: list[str], table: np.ndarray, key: int | str, path: Path) -> np.ndarray:
+    if isinstance(key, str):
+        if key not in names:
+            raise PackingError(f"{path}: no column {key!r} (columns: {' '.join(names)})")
+        key = names.index(key)
+    if not 0 <= key < table.shape[1]:
+        raise PackingError(f"{path}: no column {key} ({table.shape[1]} columns)")
+    return table[:, key]
+
+
+def packing_from_arrays(ids: np.ndarray, x: np.ndarray, y: np.ndarray, radius: np.ndarray, fixed: np.ndarray,
+                        pairs: np.ndarray | None = None, force: np.ndarray | None = None, kn: float = 1.0,
+                        source: str = "<arrays>") -> Packing:
+    """A packing from DEM arrays in the DEM's units.
+
+    Parameters
+    ----------
+    ids : (g,)
+        The grains' ids (any integers); ``pairs`` refer to them.
+    x, y, radius, fixed : (g,)
+    pairs : (c, 2) or None
+        Contacts by grain id (None: the overlapping pairs, with zero forces).
+    force : (c, 2) or None
+        Force (fx, fy) that the first grain of each pair exerts on the second.
+    kn
+        The DEM's normal stiffness (force per length): forces are divided by kn d.
+    """
+    radius = np.asarray(radius, dtype=float)
+    d = 2 * float(np.mean(radius))
+    x, y = np.asarray(x, float) / d, np.asarray(y, float) / d
+    radius = radius / d
+    ids = np.asarray(ids).astype(np.int64)
+    order = np.argsort(ids, kind="stable")
+    if len(ids) > 1 and np.any(ids[order][1:] == ids[order][:-1]):
+        raise PackingError(f"{source}: grain id {ids[order][1:][ids[order][1:] == ids[order][:-1]][0]} appears twice")
+    if pairs is None:
+        contacts = contacts_from_geometry(x, y, radius)
+        force = np.zeros((len(contacts), 2))
+    else:
+        pairs = np.asarray(pairs).astype(np.int64)
+        position = np.searchsorted(ids[order], pairs.ravel())
+        position = np.minimum(position, len(ids) - 1)
+        known = ids[order][position] == pairs.ravel()
+        if not known.all():
+            k = int(np.flatnonzero(~known)[0])
+            raise PackingError(f"{source}: contact {k // 2} names grain id {pairs.ravel()[k]}, which is not a grain")
+        contacts = order[position].reshape(-1, 2)
+        force = np.zeros((len(contacts), 2)) if force is None else np.asarray(force, dtype=float)
+    a, b = contacts[:, 0], contacts[:, 1]
+    branch = np.column_stack([x[b] - x[a], y[b] - y[a]])
+    length = np.linalg.norm(branch, axis=1)
+    far = length > 1.5 * (radius[a] + radius[b])
+    if far.any():
+        k = int(np.flatnonzero(far)[0])
+        raise PackingError(f"{source}: contact {k} joins grains {ids[a[k]]} and {ids[b[k]]} whose centres are "
+                           f"{length[k]:.3g} d apart (a periodic image? periodic packings are not supported)")
+    n = branch / np.where(length > 0, length, 1.0)[:, None]
+    t = np.column_stack([-n[:, 1], n[:, 0]])
+    scale = kn * d
+    return validate({"x": x, "y": y, "radius": radius, "fixed": np.asarray(fixed, dtype=float),
+                     "grain_a": a, "grain_b": b, "normal_force": np.sum(force * n, axis=1) / scale,
+                     "tangential_force": -np.sum(force * t, axis=1) / scale}, source)
+
+
+def _fixed(ids: np.ndarray, types: np.ndarray | None, fixed_types: Sequence[int], fixed_ids: Sequence[int]):
+    held = np.isin(ids, np.asarray(fixed_ids, dtype=np.int64))
+    if types is not None and len(fixed_types):
+        held |= np.isin(types, np.asarray(fixed_types))
+    return held
+
+
+def read_lammps(atoms: str | Path, pairs: str | Path | None = None, columns: Mapping[str, int | str] | None = None,
+                kn: float = 1.0, fixed_types: Sequence[int] = (), fixed_ids: Sequence[int] = (),
+                timestep: int | None = None) -> Packing:
+    """A packing from a LAMMPS/LIGGGHTS ``dump`` of atoms and an optional ``dump local`` of contacts.
+
+    Parameters
+    ----------
+    atoms
+        ``dump ID all custom N file id type x y z radius`` (columns by name: ``id``, ``x``,
+        ``y``, ``radius`` or ``diameter``; ``type`` if ``fixed_types``).
+    pairs
+        The ``dump local`` of the contacts, or None (contacts: overlapping pairs, forces 0).
+    columns
+        Where id1, id2, fx, fy are in ``pairs`` (index or header name);
+        default :data:`LIGGGHTS_ID_FORCE`.  (fx, fy) is the force on id1.
+    kn
+        The DEM's normal stiffness (units of force per length).
+    fixed_types, fixed_ids
+        Grains held.
+    timestep
+        The snapshot (default the last of each file).
+    """
+    atoms = Path(atoms)
+    names, table = read_dump(atoms, "ATOMS", timestep)
+    ids = _column(names, table, "id", atoms).astype(np.int64)
+    radius = (_column(names, table, "radius", atoms) if "radius" in names
+              else 0.5 * _column(names, table, "diameter", atoms))
+    types = _column(names, table, "type", atoms) if "type" in names else None
+    held = _fixed(ids, types, fixed_types, fixed_ids)
+    x, y = _column(names, table, "x", atoms), _column(names, table, "y", atoms)
+    if pairs is None:
+        return packing_from_arrays(ids, x, y, radius, held, kn=kn, source=str(atoms))
+    pairs = Path(pairs)
+    local_names, local = read_dump(pairs, "ENTRIES", timestep)
+    spec = dict(LIGGGHTS_ID_FORCE if columns is None else columns)
+    i1, i2 = (_column(local_names, local, spec[k], pairs) for k in ("id1", "id2"))
+    on_first = np.column_stack([_column(local_names, local, spec[k], pairs) for k in ("fx", "fy")])
+    return packing_from_arrays(ids, x, y, radius, held, np.column_stack([i1, i2]), -on_first, kn, str(pairs))
+
+
+def read_yade(path: str | Path, kn: float = 1.0) -> Packing:
+    """A packing from the YADE text export of docs/packings.md.
+
+    Lines ``B id x y radius fixed`` (bodies) and ``I id1 id2 fx fy`` (interactions: F the
+    force of id1 on id2); ``#`` starts a comment.
+    """
+    path = Path(path)
+    try:
+        lines = [line.split("#", 1)[0].split() for line in path.read_text().splitlines()]
+    except OSError as error:
+        raise PackingError(f"cannot read {path}: {error}") from None
+    bodies = [row[1:] for row in lines if row and row[0] == "B"]
+    interactions = [row[1:] for row in lines if row and row[0] == "I"]
+    unknown = next((k for k, row in enumerate(lines) if row and row[0] not in ("B", "I")), None)
+    if unknown is not None:
+        raise PackingError(f"{path}: line {unknown + 1} is neither a body (B) nor an interaction (I)")
+    if not bodies:
+        raise PackingError(f"{path}: no body line ('B id x y radius fixed')")
+    try:
+        body = np.array(bodies, dtype=float).reshape(len(bodies), 5)
+        inter = np.array(interactions, dtype=float).reshape(len(interactions), 4)
+    except ValueError:
+        raise PackingError(f"{path}: body lines need 5 numbers and interaction lines 4") from None
+    return packing_from_arrays(body[:, 0], body[:, 1], body[:, 2], body[:, 3], body[:, 4], inter[:, :2],
+                               inter[:, 2:4], kn, str(path))
+
+
+def read_csv(grains: str | Path, contacts: str | Path | None = None, kn: float = 1.0) -> Packing:
+    """A packing from CSV tables with a header line (see the module docstring)."""
+    grains = Path(grains)
+    table = _read_table(grains)
+    for name in ("x", "y", "radius"):
+        if name not in table:
+            raise PackingError(f"{grains}: no column {name!r} (a grains table needs x, y, radius)")
+    count = len(table["x"])
+    ids = table.get("id", np.arange(count))
+    fixed = table.get("fixed", np.zeros(count))
+    if contacts is None:
+        return packing_from_arrays(ids, table["x"], table["y"], table["radius"], fixed, kn=kn, source=str(grains))
+    contacts = Path(contacts)
+    pairs = _read_table(contacts)
+    for name in ("a", "b"):
+        if name not in pairs:
+            raise PackingError(f"{contacts}: no column {name!r} (a contacts table needs a, b)")
+    ab = np.column_stack([pairs["a"], pairs["b"]])
+    if "fx" in pairs:
+        force = np.column_stack([pairs["fx"], pairs.get("fy", np.zeros(len(ab)))])
+        return packing_from_arrays(ids, table["x"], table["y"], table["radius"], fixed, ab, force, kn, str(contacts))
+    packing = packing_from_arrays(ids, table["x"], table["y"], table["radius"], fixed, ab, None, kn, str(contacts))
+    d = 2 * float(np.mean(table["radius"]))
+    return packing.with_forces(pairs.get("normal_force", np.zeros(len(ab))) / (kn * d),
+                               pairs.get("tangential_force", np.zeros(len(ab))) / (kn * d))
+
+
+def _read_table(path: Path) -> dict[str, np.ndarray]:
+    try:
+        text = path.read_text()
+    except OSError as error:
+        raise PackingError(f"cannot read {path}: {error}") from None
+    lines = [line for line in text.splitlines() if line.strip() and not line.lstrip().startswith("#")]
+    if not lines:
+        return {}
+    names = [name.strip() for name in lines[0].split(",")]
+    try:
+        data = np.loadtxt(io.StringIO("\n".join(lines[1:])), delimiter=",", ndmin=2) if len(lines) > 1 else \
+            np.zeros((0, len(names)))
+    except ValueError as error:
+        raise PackingError(f"{path}: not a numeric CSV table ({error})") from None
+    if data.shape[1] != len(names):
+        raise PackingError(f"{path}: {data.shape[1]} columns for the {len(names)} names of the header")
+    return {name: data[:, k] for k, name in enumerate(names)}
