@@ -107,12 +107,14 @@ def _preflight(study, output: Path, args: argparse.Namespace) -> None:
     from ncstab.studies.cycle_limits import check_cycle_turns
     from ncstab.studies.outputs import check_existing_output
     from ncstab.studies.preflight import check_study_size
+    from ncstab.studies.system_size import check_system_size
 
     chunked = _runs_in_chunks(study, args)
     in_memory = None
     if chunked:
         in_memory = (args.chunk_cases or default_chunk_cases(study, args.workers)) * (args.workers or 1)
     check_study_size(study, output, max_cases=args.max_cases, cases_in_memory=in_memory, chunked=chunked)
+    check_system_size(study)
     check_cycle_turns(study, cases_in_memory=in_memory)
     check_existing_output(output, overwrite=args.overwrite, resume=args.resume, inputs=tuple(args.studies),
                           study_text=study.text)

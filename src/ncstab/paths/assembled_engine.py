@@ -64,6 +64,9 @@ class Point:
     internal: dict[str, np.ndarray]
     tangent: np.ndarray | None = None
     indicators: dict[str, float] = field(default_factory=dict)
+    #: The indicators as computed, before a sign within rounding was replaced by the last
+    #: certain one (:func:`ncstab.paths.assembled_path._steady`); None: the same as ``indicators``.
+    raw: dict[str, float] | None = None
 
 
 class CaseRun:

@@ -126,19 +126,53 @@ EIGENVALUE_NOISE = 1e-13
 #: Events located this part of a step apart are at the same point (Hill's eigenvalue and det K
 #: vanish together on a symmetric path; eigvalsh locates the first to 1e-8 of a step, the LU 1e-12).
 SAME_POINT = 1e-6
-#: Below this part of |lambda / scale| a step's change of lambda carries no sign.
-SECANT_NOISE = 1e-12
+#: Below this part of |lambda / scale| a step's change of lambda carries no sign: just past a
+#: bifurcation dR/dlambda is proportional to the small amplitude, and the corrector's lambda on
+#: a column of 2,000 links jitters by 2e-12 of itself (1e-12 gave spurious turning points).
+SECANT_NOISE = 1e-10
+
+
+@dataclass(frozen=True)
+class _Segment:
+    """One accepted step: from ``start`` along ``tangent`` over ``h``; ``s`` the arclength at
+    its start, ``index`` the start's place in the stored points."""
+
+    start: Point
+    tangent: np.ndarray
+    h: float
+    s: float
+    index: int
+
+
+def _crossed_segment(trail: list[_Segment], step: _Segment, key: str, before: float) -> _Segment:
+    """The step in which ``key``'s computed sign left ``before``.
+
+    A change of sign found certain at the end of ``step`` may have happened in an earlier
+    step where the value was within rounding of zero (its sign then carried,
+    :func:`_steady`): the computed sign is still the best there is, so the crossing is
+    located in the last step whose start still had the computed sign ``before`` (a Hencky
+    column of 2,000 links: the critical eigenvalue is 6e-12 x (1 - P / P1) against entries
+    of K of order 6, within rounding for 10 % of P1 on either side).
+    """
+    if key not in ("det", "det_SS", "hill"):
+        return step
+    for segment in reversed([*trail, step]):
+        raw = segment.start.raw if segment.start.raw is not None else segment.start.indicators
+        if _sign(raw.get(key, before)) == before:
+            return segment
+    return trail[0] if trail else step
 
 
 def _steady(stepper: Stepper, p: Point, q: Point) -> dict:
-    """q's indicators, with the sign of p kept where q's value is within rounding of zero.
+    """q's computed indicators (``q.raw``), with the sign of p kept where q's value is within rounding of zero.
 
     A sign within rounding is no sign: just past a bifurcation the buckled column's
     critical eigenvalue is 1e-16 against entries of K of order 6, and dlambda/ds is
     1e-7 with errors of the same size.  Keeping the last sign that was certain means
-    a true crossing is still a change, located where the sign becomes certain.
+    a true crossing is still a change, found where the sign becomes certain and located
+    where the computed sign changed (:func:`_crossed_segment`).
     """
-    a, b = p.indicators, dict(q.indicators)
+    a, b = p.indicators, dict(q.raw)
     K = q.state.K
     scale = float(abs(K).max()) if K.shape[0] else 1.0
     noise = EIGENVALUE_NOISE * max(scale, 1e-300)
@@ -288,6 +322,7 @@ def follow_case(run: CaseRun, programme: LoadingProgramme, values: dict[str, flo
             branch = int(values.get("branch", 0))
             switching, sense_switch = ("switch", branch) if branch else ("continue", 1)
         switched = False
+        trail: list[_Segment] = []  # this stage's accepted steps since its start or last disruption
         t = p.tangent
         h = 0.01 if options.initial_step == "auto" else float(options.initial_step)
         target = control.lam_end
@@ -315,55 +350,60 @@ def follow_case(run: CaseRun, programme: LoadingProgramme, values: dict[str, flo
                     out.status, out.message = f"failed:{reason}", text
                     return out
                 continue
-            q.indicators = stepper.indicators(q)
+            q.raw = stepper.indicators(q)
             q.indicators = _steady(stepper, p, q)
             lam_p, lam_q = stepper.lam(p.y), stepper.lam(q.y)
-            crossings: list[tuple[float, str, float, float, Point]] = []
+            step = _Segment(p, t, h, s, len(out.points) - 1)
+            crossings: list[tuple[float, str, float, float, Point, _Segment]] = []
             for name in _event_names(p.indicators, q.indicators):
                 key = _indicator_key(name)
                 before = 1.0 if key == "gap" else _sign(p.indicators["secant"]) if key == "turning" else _sign(p.indicators[key])
+                where = _crossed_segment(trail, step, key, before)
 
                 def test(x, key=key, before=before):
                     return (x.indicators[key] < 0) if key == "gap" else _sign(x.indicators[key]) == -before
-                sigma, lo, hi, e = _locate(stepper, p, t, h, test, options.event_tol)
+                sigma, lo, hi, e = _locate(stepper, where.start, where.tangent, where.h, test, options.event_tol)
                 if e is not None:
                     if name in ("bifurcation", "limit_point"):
                         e = refine_critical_load(stepper, e)
-                    crossings.append((sigma, name, lo, hi, e))
+                    crossings.append((where.s + sigma, name, where.s + lo, where.s + hi, e, where))
             if (lam_q - target) * sense >= 0 and (lam_p - target) * sense < 0:
                 sigma, lo, hi, e = _locate(stepper, p, t, h, lambda x: (stepper.lam(x.y) - target) * sense >= 0,
                                            options.event_tol)
                 end = stepper.correct(p.y + sigma * t, t, p, fixed_lambda=target)
                 if end is not None:
                     end.tangent, end.indicators = e.tangent, e.indicators
-                    crossings.append((sigma, "<end>", lo, hi, end))
+                    crossings.append((s + sigma, "<end>", s + lo, s + hi, end, step))
             crossings.sort(key=lambda c: c[0])
             disrupted = None
-            for sigma, name, lo, hi, e in crossings:
-                if disrupted is not None and lo > disrupted[0] + SAME_POINT * h:
+            for at, name, lower, upper, e, where in crossings:
+                if disrupted is not None and lower > disrupted[0] + SAME_POINT * h:
                     break  # past the disruption: not on this path
                 if name == "<end>":
-                    disrupted = disrupted or (sigma, name, e)
+                    disrupted = disrupted or (at, name, e, where)
                     continue
-                _record(out, name, e, number, s + sigma, s + lo, s + hi, stepper.lam(e.y))
+                _record(out, name, e, number, at, lower, upper, stepper.lam(e.y))
                 if disrupted is not None:
                     continue  # an event at the same point as the disruption: recorded, nothing more
                 if name in stage.stop_at or (name == "secondary_contact" and run.mode == "stop"):
-                    disrupted = (sigma, "stop:" + name, e)
+                    disrupted = (at, "stop:" + name, e, where)
                 elif name == "bifurcation" and switching == "switch" and not switched:
-                    disrupted = (sigma, "switch", e)
+                    disrupted = (at, "switch", e, where)
                 elif name == "secondary_contact" and run.mode == "activate":
-                    disrupted = (sigma, "activate", e)
+                    disrupted = (at, "activate", e, where)
             if disrupted is None:
                 out.accepted += 1
+                trail.append(step)
                 s += h
                 out.points.append(q), out.stages.append(number), out.arclength.append(s)
                 p, t = q, q.tangent
                 h *= 1.3
                 continue
-            sigma, what, e = disrupted
-            s += sigma
+            s, what, e, where = disrupted
             out.accepted += 1
+            trail.clear()
+            kept = where.index + 1  # a crossing found in an earlier step: the points past it are dropped
+            del out.points[kept:], out.stages[kept:], out.arclength[kept:]
             out.points.append(e), out.stages.append(number), out.arclength.append(s)
             if what == "<end>":
                 previous = e

@@ -24,7 +24,7 @@ import shutil
 from dataclasses import dataclass
 from pathlib import Path as FilePath
 
-from ncstab.sizes import available_memory, readable_size
+from ncstab.sizes import available_memory, readable_count, readable_size
 from ncstab.studies.errors import (
     DiskFullError,
     LimitError,
@@ -218,21 +218,26 @@ def size_estimate(study: Study) -> SizeEstimate:
     Stored states of a case: 1 + (driven length of each stage) / ``sample_step``
     (``max_step`` where it is not set; :func:`~ncstab.studies.stage_extent.stage_extents`),
     at most ``max_steps`` times the most pieces of a step, + 1; bytes: 8 per float of ``u``, ``F`` (n each), ``K``,
-    ``K_sym``, ``K_skew`` (n^2 each) and the 12 scalars of a state, 4 for
+    ``K_sym``, ``K_skew`` (n^2 each, stored up to 64 dofs) and the 12 scalars of a state, 4 for
     ``stage``; per case, the 6 events' located state and 12 bytes of counters.
     """
-    from ncstab.systems import SYSTEMS
+    from ncstab.studies.system_size import study_dofs
+    from ncstab.systems.registry import DERIVED_DOFS_LIMIT
 
-    system = SYSTEMS.get(study.system.name)
-    n = len(getattr(system, "dof_names", ("D1", "D2")))
-    contacts = int(getattr(system, "n_contacts", 1))
+    n = study_dofs(study)
+    contacts = int(getattr(study.system, "n_contacts", 1))
+    squares = n * n
+    if n > DERIVED_DOFS_LIMIT:  # assembled: K, K_sym, K_skew stored up to STORED_K_LIMIT dofs
+        from ncstab.paths.assembled_result import STORED_K_LIMIT  # (scipy: only for such a system)
+
+        squares = n * n if n <= STORED_K_LIMIT else 0
     extents = stage_extents(study.programme.stages, study.parameters)
     step = float(study.options.stored_spacing)
     cap = float(study.options.max_steps) * study.options.max_pieces + 1
     mean = 1.0 + sum(float(e.measured_from_rest.mean()) for e in extents) / step
     longest = 1.0 + max((float(e.measured_from_rest.max()) for e in extents), default=0.0) / step
-    per_state = 8 * (2 * n + 3 * n * n + _STATE_SCALARS + 4 * (contacts - 1)) + 4
-    per_case = _EVENTS * (8 * (_EVENT_SCALARS + 2 * n + n * n) + 4) + 12
+    per_state = 8 * (2 * n + 3 * squares + _STATE_SCALARS + 4 * (contacts - 1)) + 4
+    per_case = _EVENTS * (8 * (_EVENT_SCALARS + 2 * n + squares) + 4) + 12
     return SizeEstimate(study.n_cases, min(mean, cap), min(longest, cap), per_state, per_case)
 
 
@@ -317,7 +322,7 @@ def check_study_size(
         raise LimitError(
             "[parameters]", readable_size(on_disk),
             f"study {study.name!r} needs at least {readable_size(on_disk)} on disk ({cases:,} cases x "
-            f"{estimate.mean_states:.0f} states x {estimate.bytes_per_state} bytes, compressed"
+            f"{readable_count(estimate.mean_states)} states x {estimate.bytes_per_state} bytes, compressed"
             f"{', parts and archive' if chunked else ''}) and {ancestor} has {readable_size(free)} free; "
             "reduce the sweep ([parameters]) or free space",
         )
@@ -330,7 +335,7 @@ def check_study_size(
         raise LimitError(
             "[map] directions", readable_size(need),
             f"[map] directions = {study_map.directions}: the directional work d2W_dir of {in_memory:,} "
-            f"cases x {estimate.longest_states:.0f} states x {study_map.directions} directions needs at "
+            f"cases x {readable_count(estimate.longest_states)} states x {study_map.directions} directions needs at "
             f"least {readable_size(need)} of memory, more than the {readable_size(memory)} available; use fewer "
             "directions (or fewer cases per chunk: --chunk-cases)",
         )

@@ -25,10 +25,16 @@ __all__ = ["DERIVED_DOFS_LIMIT", "REDUCTIONS", "SYSTEMS", "Setting", "SystemKind
 REDUCTIONS = ("symmetric", "axes")
 
 
-def _whole_at_least(low: int) -> Callable[[Any], str | None]:
+#: The most dofs a shipped system is built with: 10^7 dofs need about 150 GB of working
+#: memory in the sparse engine (15 kB a dof, :mod:`ncstab.studies.system_size`), and a
+#: larger count would exhaust memory while the study is checked, before any estimate.
+MOST_DOFS = 10_000_000
+
+
+def _whole_at_least(low: int, high: int = MOST_DOFS) -> Callable[[Any], str | None]:
     def check(value: Any) -> str | None:
-        if isinstance(value, bool) or not isinstance(value, int) or value < low:
-            return f"a whole number >= {low}"
+        if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+            return f"a whole number from {low} to {high:,} (a larger system needs more than 100 GB of memory)"
         return None
 
     return check
@@ -82,6 +88,11 @@ class SystemKind:
         Whether its interactions have laws of their own (no ``[laws]`` needed).
     build
         ``settings -> SystemDefinition``.
+    dof_count
+        ``settings -> n``, the number of dofs of what ``build`` gives, known before
+        anything is built (the size estimated before a run, :mod:`ncstab.studies.system_size`).
+    size_setting
+        The setting that sets the size (``grains``, ``links``), or None.
     """
 
     name: str
@@ -92,6 +103,8 @@ class SystemKind:
     granular: bool
     own_laws: bool
     build: Callable[..., SystemDefinition]
+    dof_count: Callable[..., int] = lambda **_settings: 2
+    size_setting: str | None = None
 
     def setting_names(self) -> tuple[str, ...]:
         return tuple(s.name for s in self.settings)
@@ -155,6 +168,7 @@ SYSTEMS: dict[str, SystemKind] = {
         granular=True,
         own_laws=False,
         build=_diamond,
+        dof_count=lambda reduction="symmetric", **_: 2 if reduction == "symmetric" else 4,
     ),
     "ring": SystemKind(
         name="ring",
@@ -165,16 +179,20 @@ SYSTEMS: dict[str, SystemKind] = {
         granular=True,
         own_laws=False,
         build=_ring,
+        dof_count=lambda grains, **_: int(grains),
+        size_setting="grains",
     ),
     "column": SystemKind(
         name="column",
         title="Hencky's column: n rigid links, rotational springs, axial dead load P",
-        settings=(Setting("links", "the number of rigid links, n >= 2", None, _whole_at_least(2)),),
+        settings=(Setting("links", "the number of rigid links, n >= 2", None, _whole_at_least(2, MOST_DOFS + 1)),),
         parameter_specs=(),
         shorthands=(),
         granular=False,
         own_laws=True,
         build=_column,
+        dof_count=lambda links, **_: int(links) - 1,
+        size_setting="links",
     ),
     "ziegler": SystemKind(
         name="ziegler",
