@@ -11,6 +11,7 @@ from ncstab.operators.sparse_indicators import critical_eigenvalue, determinant,
 from ncstab.paths.assembled_control import StageControl, stage_control
 from ncstab.paths.assembled_engine import GAP_REACH, MAX_LAMBDA_STEP, MAX_RELATIVE_MOVE, CaseRun, DomainError, Point
 from ncstab.paths.programme import LoadingProgramme
+from ncstab.paths.trivial_path import is_trivial, trivial_path_signs
 
 __all__ = ["CaseOutcome", "follow_case"]
 
@@ -112,6 +113,8 @@ class Stepper:
         out = {"det": sign, "log_det": log, "det_SS": sign_SS, "log_det_SS": log_SS, "bordered": bordered,
                "hill": hill_eigenvalue(p.state.K), "turning": float(p.tangent[self.m]),
                "d2W": float(du @ dF / size) if size > 0 else np.nan}
+        if is_trivial(self, p):  # signs exact where K's rounding hides them (a long straight column)
+            trivial_path_signs(self, p, out, EIGENVALUE_NOISE)
         if self.run.system.grains is not None:
             pairs, gaps = gap_candidates(self.run.system, p.u, GAP_REACH)
             closed = {tuple(x) for x in self.run.closed.tolist()}
@@ -178,6 +181,8 @@ def _steady(stepper: Stepper, p: Point, q: Point) -> dict:
     noise = EIGENVALUE_NOISE * max(scale, 1e-300)
     rise = float(q.y[-1] - p.y[-1])  # the secant's dlambda: robust where the tangent is not
     b["secant"] = a.get("secant", 0.0) if abs(rise) <= SECANT_NOISE * max(1.0, abs(q.y[-1])) else rise
+    if b.get("exact"):  # signs computed without K's rounding (ncstab.paths.trivial_path): nothing to carry
+        return b
     if abs(b["hill"]) <= noise:
         b["hill"] = a["hill"]
     for key, matrix in (("det", K), ("det_SS", None)):
@@ -370,9 +375,12 @@ def follow_case(run: CaseRun, programme: LoadingProgramme, values: dict[str, flo
             if (lam_q - target) * sense >= 0 and (lam_p - target) * sense < 0:
                 sigma, lo, hi, e = _locate(stepper, p, t, h, lambda x: (stepper.lam(x.y) - target) * sense >= 0,
                                            options.event_tol)
-                end = stepper.correct(p.y + sigma * t, t, p, fixed_lambda=target)
+                end = stepper.correct(p.y + sigma * t, t, p, fixed_lambda=target) if e is not None else None
                 if end is not None:
                     end.tangent, end.indicators = e.tangent, e.indicators
+                else:  # Newton at the target itself failed (a column of 5,000 links, buckled): the
+                    end = e  # bisection's point, within event_tol of a step of the target
+                if end is not None:
                     crossings.append((s + sigma, "<end>", s + lo, s + hi, end, step))
             crossings.sort(key=lambda c: c[0])
             disrupted = None
