@@ -173,7 +173,8 @@ def test_every_kind_is_written_as_a_png_with_content(name, request, tmp_path):
     )
     for path in written:
         image = mpimg.imread(path)
-        assert image.shape[:2] == (round(4.8 * dpi), round(6.4 * dpi))
+        height = 6.6 if path.stem.endswith("_stability") else 4.8  # three stacked panels: taller
+        assert image.shape[:2] == (round(height * dpi), round(6.4 * dpi))
         rgb = image[..., :3]
         # Not blank: a white page with a few lines has a small deviation;
         # curves, text and grid of a figure give well above 0.05, and many colours.
@@ -239,8 +240,10 @@ def test_load_rotation_draws_one_curve_per_case_with_its_valid_steps(uniaxial):
     np.testing.assert_array_equal(line.get_ydata(), case["F"].sel(dof="D1").values)
     assert r"$\alpha$" in axes.get_xlabel() and "(rad)" in axes.get_xlabel()
     assert axes.get_ylabel() == r"$F_1^* = F_1/(2R\,k_n)$"
-    # Colours: one per case, all different.
-    assert len({to_rgba(line.get_color()) for line in paths}) == 4
+    # A law x gamma grid: one colour per gamma, one line style per law; every case its own pair.
+    assert len({to_rgba(line.get_color()) for line in paths}) == 2
+    assert len({str(line.get_linestyle()) for line in paths}) == 2
+    assert len({(to_rgba(line.get_color()), str(line.get_linestyle())) for line in paths}) == 4
 
 
 def test_load_rotation_overlays_eq48_on_the_hyperelastic_cases_only(uniaxial):
@@ -275,11 +278,12 @@ def test_load_rotation_overlays_eq48_on_the_hyperelastic_cases_only(uniaxial):
 
 def test_legend_has_the_cases_one_closed_form_and_one_entry_per_event_kind(uniaxial):
     texts = legend_texts(plot_load_rotation(uniaxial))
+    # 2 laws x 2 gammas: each law (its line style) and each gamma (its colour) once.
     assert texts[:4] == [
-        r"McNamara et al. 2008 (hyperelastic), $\gamma$ = 0.5",
-        r"McNamara et al. 2008 (hyperelastic), $\gamma$ = 2",
-        r"Cundall–Strack (hypoelastic), $\gamma$ = 0.5",
-        r"Cundall–Strack (hypoelastic), $\gamma$ = 2",
+        "McNamara et al. 2008 (hyperelastic)",
+        "Cundall–Strack (hypoelastic)",
+        r"$\gamma$ = 0.5",
+        r"$\gamma$ = 2",
     ]
     assert texts[4] == "closed form (seed Eq. 48)"
     # Four cases each meet the secondary contact (recorded, ignored): one entry.
@@ -380,7 +384,7 @@ def test_stability_panels_show_the_indicators_and_their_zero_crossing(preloaded)
     assert [p.get_ylabel() for p in panels] == [
         r"$\det K^*$",
         r"$\lambda_{\min}(K^*_{\mathrm{sym}})$",
-        "normalised $d^2W$",
+        "$d^2W$\n(normalised)",
     ]
     case = case_data(preloaded, "mcnamara")
     for axes, name in zip(panels[:2], ("det_K", "hill")):

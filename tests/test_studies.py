@@ -477,3 +477,18 @@ def test_the_guide_lists_every_option_with_its_default():
             assert row.group(1) == "none", field.name
         else:
             assert float(row.group(1)) == field.default, field.name
+
+
+def test_a_bad_system_setting_is_reported_alone_without_follow_on_errors(tmp_path):
+    """``grains = -3`` in a ring study whose stages name F3 and a free parameter: the system's
+    error only (its dofs are unknown, so neither the stages' quantities nor the parameters they
+    use are checked against a fallback system)."""
+    path = tmp_path / "bad_ring.toml"
+    path.write_text(
+        '[study]\nname = "bad_ring"\n[system]\nname = "ring"\ngrains = -3\n[laws]\nnames = ["mcnamara"]\n'
+        '[parameters]\ngamma = 0.5\nlateral = 0.2\n[[loading]]\nhold = { F2 = "lateral", F3 = 0.0 }\n'
+        'drive = { D1 = 0.1 }\n'
+    )
+    with pytest.raises(StudyFileError) as info:
+        load_study(path)
+    assert [field for field, _ in info.value.errors] == ["system.grains"]

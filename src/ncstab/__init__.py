@@ -4,6 +4,7 @@ The main entry points:
 
 * :func:`ncstab.follow` -- follow a loading programme for laws and sweeps;
 * :func:`ncstab.analyse` -- K, Hill's eigenvalue and modes of a granular packing;
+* :func:`ncstab.boundary` -- a stability boundary traced as a curve (continuation);
 * :func:`ncstab.make_law`, :class:`ncstab.DiamondChain`,
   :func:`ncstab.tangent_operator` -- the building blocks.
 
@@ -19,7 +20,7 @@ from ncstab.lazy_imports import lazy_attributes
 
 __version__ = "0.1.0"
 
-__all__ = ["DiamondChain", "PathOptions", "SystemSpec", "analyse", "follow", "make_law", "open_study", "tangent_operator", "__version__"]
+__all__ = ["DiamondChain", "PathOptions", "SystemSpec", "analyse", "boundary", "follow", "make_law", "open_study", "tangent_operator", "__version__"]
 
 __getattr__, __dir__ = lazy_attributes(
     __name__,
@@ -27,6 +28,7 @@ __getattr__, __dir__ = lazy_attributes(
         "DiamondChain": "ncstab.systems",
         "PathOptions": "ncstab.paths",
         "analyse": "ncstab.analyse_command",
+        "boundary": "ncstab.boundaries",
         "SystemSpec": "ncstab.paths",
         "follow": "ncstab.paths",
         "make_law": "ncstab.laws",
@@ -38,6 +40,7 @@ __getattr__, __dir__ = lazy_attributes(
 
 if TYPE_CHECKING:  # pragma: no cover
     from ncstab.analyse_command import analyse
+    from ncstab.boundaries import boundary
     from ncstab.laws import make_law
     from ncstab.operators import tangent_operator
     from ncstab.paths import PathOptions, SystemSpec, follow

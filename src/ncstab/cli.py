@@ -14,6 +14,7 @@ from typing import NoReturn, Sequence
 import ncstab
 from ncstab.cli_process import discard_stdout, exit_now, out_of_memory, stdout_closed
 from ncstab.run_command import command_run
+from ncstab.terminal_text import fitted_table, printable
 
 __all__ = ["advise_numpy_memory", "build_parser", "main"]
 
@@ -23,14 +24,6 @@ class OneLineErrorParser(argparse.ArgumentParser):
 
     def error(self, message: str) -> NoReturn:
         self.exit(2, f"{self.prog}: {message} (see {self.prog} --help)\n")
-
-
-def _format_table(rows: list[list[str]], header: list[str]) -> str:
-    widths = [max(len(str(r[i])) for r in rows + [header]) for i in range(len(header))]
-    line = "  ".join("-" * w for w in widths)
-    out = ["  ".join(h.ljust(w) for h, w in zip(header, widths)), line]
-    out += ["  ".join(str(c).ljust(w) for c, w in zip(r, widths)) for r in rows]
-    return "\n".join(row.rstrip() for row in out)
 
 
 def command_laws(args: argparse.Namespace) -> int:
@@ -61,14 +54,16 @@ def command_laws(args: argparse.Namespace) -> int:
         print(law_explanation(definition))
         return 0
     names = list(study.laws) if study is not None else law_names(with_modifiers=args.all)
-    rows = []
+    rows, notes = [], []
     for name in names:
         definition = study.law_definition(name) if study is not None else law_definition(name)
         summary = class_summary(definition)  # classified once, then read from the cache directory
-        rows.append([name, summary.kind, definition.equations, summary.energy or "-", summary.reason])
+        rows.append([name, summary.kind, definition.equations])
+        notes.append([f"energy W(l, alpha): {summary.energy or '- (none)'}", f"decided by: {summary.reason}"])
     if study is not None:
-        print(f"{args.study}: the laws of study {study.name!r}")
-    print(_format_table(rows, ["law", "class", "seed", "energy W(l, alpha)", "decided by"]))
+        print(printable(f"{args.study}: the laws of study {study.name!r}"))
+    table = fitted_table(rows, ["law", "class", "seed"], notes=notes)  # 100 columns
+    print("\n".join(printable(line) for line in table.splitlines()))
     print()
     print(f"System kinematics: {kinematic_integrability()}")
     print("Variables are dimensionless (seed Eq. 37): l = l/2R, N, T in units of 2R k_n,")
@@ -146,7 +141,7 @@ def command_info(args: argparse.Namespace) -> int:
 
         with open_study_lazily(path) as dataset:
             lines = archive_summary(dataset, path)
-    print("\n".join(lines))
+    print("\n".join(printable(line) for line in lines))  # a description's ESC or NUL shown, not obeyed
     return 0
 
 

@@ -8,16 +8,39 @@ entry, and every run that needs that function would fail.
 :func:`harden_numba_cache` wraps numba's loading so that an entry that cannot
 be read is a cache miss: the function is compiled again and its entry
 rewritten (numba's own save replaces the index and the data).
+
+A miss of one of ncstab's own functions means compiling, which takes tens of
+seconds the first time on a machine: :func:`harden_numba_cache` also has the
+first miss of a process say so on a terminal (:func:`announce_compilation`),
+so that a new user does not wait in silence.
 """
 
 from __future__ import annotations
 
 import functools
+import sys
 from typing import Any, Callable
 
-__all__ = ["harden_numba_cache"]
+__all__ = ["announce_compilation", "harden_numba_cache"]
 
 _MARK = "_ncstab_damaged_entries_are_misses"
+#: What a terminal is told at the first compilation of a process.
+COMPILING_NOTICE = ("ncstab: compiling the engine for this machine (once: 10-60 s a law; "
+                    "the machine code is kept in the cache, `ncstab cache` shows where)")
+_announced = False
+
+
+def announce_compilation(py_func: Any) -> bool:
+    """Say on stderr, once a process and only on a terminal, that ncstab compiles its engine:
+    ``py_func`` is a function numba found no cached code for.  Returns whether it said so."""
+    global _announced
+    module = str(getattr(py_func, "__module__", "") or "")
+    stream = sys.stderr
+    if _announced or not module.startswith("ncstab") or not getattr(stream, "isatty", lambda: False)():
+        return False
+    _announced = True
+    print(COMPILING_NOTICE, file=stream, flush=True)
+    return True
 
 
 def _miss_on_error(method: Callable[..., Any], miss: Callable[[], Any]) -> Callable[..., Any]:
@@ -46,5 +69,14 @@ def harden_numba_cache() -> None:
     index_file = caching.IndexDataCacheFile
     index_file._load_index = _miss_on_error(index_file._load_index, dict)
     index_file.load = _miss_on_error(index_file.load, lambda: None)
-    caching.Cache.load_overload = _miss_on_error(caching.Cache.load_overload, lambda: None)
+    load_overload = _miss_on_error(caching.Cache.load_overload, lambda: None)
+
+    @functools.wraps(load_overload)
+    def announced(self: Any, *args: Any, **kwargs: Any) -> Any:
+        data = load_overload(self, *args, **kwargs)
+        if data is None:  # a miss: numba compiles next
+            announce_compilation(getattr(self, "_py_func", None))
+        return data
+
+    caching.Cache.load_overload = announced
     setattr(caching, _MARK, True)

@@ -110,6 +110,21 @@ def _preflight(study, output: Path, args: argparse.Namespace) -> None:
     from ncstab.studies.system_size import check_system_size
 
     chunked = _runs_in_chunks(study, args)
+    if chunked and study.boundary is not None:
+        from ncstab.studies.errors import InvalidInputError
+
+        raise InvalidInputError(
+            "a study with [boundary] traces its curves in one process: run it without --workers, "
+            "--scheduler, --chunk-cases and --resume"
+        )
+    if chunked and study.programme.dynamic is not None:
+        from ncstab.studies.errors import InvalidInputError
+
+        raise InvalidInputError(
+            "a study with a dynamic stage runs in one process (its motions are not streamed in "
+            "chunks yet): run it without --workers, --scheduler, --chunk-cases and --resume, with at most "
+            "the cases of one chunk"
+        )
     in_memory = None
     if chunked:
         in_memory = (args.chunk_cases or default_chunk_cases(study, args.workers)) * (args.workers or 1)

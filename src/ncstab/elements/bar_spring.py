@@ -9,7 +9,7 @@ d2theta/dr2 = r (1 - r^2)^(-3/2):
     J = theta_b' a_b - theta_a' a_a,      H = theta_b'' a_b a_b^T - theta_a'' a_a a_a^T
 
 on the spring's own dofs (a_a, a_b the rises' coefficients there).  An axial dead
-load P does the work P sum_i (1 - cos theta_i) (ARCHITECTURE.md, "Systems",
+load P does the work P sum_i (1 - cos theta_i) (docs/models.md,
 ``column``): its generalized load Q_ext = sum_i r_i / cos(theta_i) a_i and its
 derivative sum_i cos(theta_i)^(-3) a_i a_i^T, per bar (:func:`shortening`).
 """

@@ -1,7 +1,6 @@
 """Rotational springs: one relative angle -> one moment (bars, columns, pendulums).
 
-A spring law is the one-variable case of an interaction law (ARCHITECTURE.md,
-"The model"): its interaction variable is a relative rotation ``theta`` and
+A spring law is the one-variable case of an interaction law (docs/models.md): its interaction variable is a relative rotation ``theta`` and
 its conjugate force the moment ``M`` (``dW_int = M dtheta``).  Moments are in
 units of the spring's stiffness (k, or C for Hencky's column), angles in
 radians.  Like a contact law it may be given in total form ``M(theta)``, in

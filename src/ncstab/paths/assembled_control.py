@@ -1,8 +1,7 @@
 """A stage's control of an assembled system: which dofs are driven through u or F, as affine maps of lambda.
 
 For the sparse engine (:mod:`ncstab.paths.assembled_engine`).  A linear stage
-prescribes every dof's displacement or its force (ARCHITECTURE.md, "Study
-file"); one driven quantity is lambda itself, several move together with
+prescribes every dof's displacement or its force (docs/study-files.md); one driven quantity is lambda itself, several move together with
 lambda from 0 to 1; a load-parameter stage drives P = lambda with every dof
 not held free (its force held at its value when the stage starts).  The
 unknowns are y = (u_S, lambda), S the force-controlled dofs; the displacement-

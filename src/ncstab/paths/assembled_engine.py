@@ -10,7 +10,7 @@ rate-form law's internal variables are integrated over each step by the
 explicit midpoint rule in the increments of its members' variables (a DEM
 code's update, second order in the step).
 
-After every accepted step the indicators of ARCHITECTURE.md's events are
+After every accepted step the indicators of the archive's events (docs/archive.md) are
 compared with the step's start (:mod:`ncstab.paths.assembled_events`); a sign
 change is located by bisection on the step length, each trial re-corrected
 onto the path.  det K changes sign at a limit point; where the bordered

@@ -1,4 +1,4 @@
-"""Following every case of an assembled system, and its Dataset (ARCHITECTURE.md, "Dataset of a study").
+"""Following every case of an assembled system, and its Dataset (docs/archive.md).
 
 :func:`follow_assembled` runs the sparse engine (:mod:`ncstab.paths.assembled_path`)
 case by case -- each case of a large system is large work, so the loop over

@@ -1,6 +1,6 @@
 """The Dataset of a study: every variable labelled, with units and descriptions.
 
-ARCHITECTURE.md, "Dataset of a study".  The dofs and forces are named by the
+docs/archive.md.  The dofs and forces are named by the
 system (the ``dof`` coordinate holds the dof names, ``force`` their forces);
 interaction variables of a family with several members carry its member
 dimension (``contact``, ``spring``); ``load`` and ``<event>_load`` appear

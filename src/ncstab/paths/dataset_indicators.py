@@ -1,6 +1,6 @@
 """The indicators of a path Dataset at every stored state, in blocks of whole cases.
 
-A path Dataset (ARCHITECTURE.md, "Dataset of a study") holds, at every stored
+A path Dataset (docs/archive.md) holds, at every stored
 state, K's symmetric and skew parts, det K, the least eigenvalue of K_sym
 (Hill's condition), the normalised second-order work, the ``flutter`` variable
 and the determinant of the mixed control.  They come from K, u, du and the

@@ -8,7 +8,7 @@ every dof free -- its force held at the value it has when the stage starts,
 zero from rest -- unless the stage holds it.  A *cycle* stage drives two
 displacements around a circle through the current state, in the plane of
 the dofs it names (the first two for a two-dof system), the others free
-(ARCHITECTURE.md, "Study file").  Values are numbers, names of parameters,
+(docs/study-files.md).  Values are numbers, names of parameters,
 or ``"current"`` (held at the value the quantity has when the stage starts).
 """
 
@@ -146,9 +146,15 @@ class CycleStage:
 
 @dataclass(frozen=True)
 class LoadingProgramme:
-    """An ordered list of stages, validated against a system's dofs."""
+    """An ordered list of stages, validated against a system's dofs.
+
+    ``dynamic``: the programme's last stage when it is a dynamic one (a
+    :class:`ncstab.dynamics.DynamicStage`, integrated in time from where the
+    other stages end), else ``None``.
+    """
 
     stages: tuple[Stage | CycleStage, ...]
+    dynamic: Any = None
 
     def __len__(self) -> int:
         return len(self.stages)
@@ -166,6 +172,8 @@ class LoadingProgramme:
                 list(stage.controls().values()) if isinstance(stage, Stage) else list(stage.center)
             )
             names |= {v for v in values if isinstance(v, str) and v != CURRENT}
+        if self.dynamic is not None:
+            names |= self.dynamic.parameter_references()
         return names
 
 

@@ -108,7 +108,7 @@ class PathResult:
         return result, flat
 
     def to_dataset(self, directions: int | None = None, spectrum: bool = False) -> "xarray.Dataset":
-        """The labelled Dataset of ARCHITECTURE.md ("Dataset of a study").
+        """The labelled Dataset of docs/archive.md.
 
         Dimensions: ``law``, the swept parameters in order, then ``step``,
         ``dof`` (named by the system: ``D1``, ``D2``...), ``i``, ``j``, and the

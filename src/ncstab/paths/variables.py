@@ -49,6 +49,7 @@ VARIABLES: dict[str, tuple[str, str, str]] = {
     "cone_lower": ("rad", "lower bound of the unstable cone", "exact root of du . K du = 0 bounding one of the two opposite unstable cones (the other is shifted by pi); NaN if no cone"),
     "cone_upper": ("rad", "upper bound of the unstable cone", "exact root of du . K du = 0 bounding one of the two opposite unstable cones; NaN if no cone"),
     "load": ("1", "load parameter", "the system's load parameter (P) at each stored state, in the system's units"),
+    "load_level": ("1", "load parameter", "the same values as load, under a name that also works as an attribute (ds.load is xarray's Dataset.load method); read from an older archive, made from load"),
     "theta": ("rad", "spring rotation theta", "relative rotation across each rotational spring"),
     "moment": ("1", "spring moment", "moment of each rotational spring, in units of its stiffness (k or C)"),
     "branch_index": ("1", "branch of each state", "0 on the path followed from the start; +1 or -1 once the case has left a simple bifurcation point along the bifurcating branch, that way (at_bifurcation = \"switch\" or \"branches\")"),
@@ -89,7 +90,10 @@ MEMBER_DIMENSIONS = ("contact", "spring")
 #: of the Dataset, and words of the study syntax.
 RESERVED_NAMES = frozenset(
     {"law", "law_class", "step", "dof", "force", "i", "j", "root", "cycle", "cycle_stage", "cycle_direction", "theta",
-     "current", "pi", "e", CASE_DIMENSION, "map_D1", "map_D2", *MEMBER_DIMENSIONS}
+     "current", "pi", "e", CASE_DIMENSION, "map_D1", "map_D2", *MEMBER_DIMENSIONS,
+     # the motion of a dynamic stage (ncstab.dynamics.runs)
+     "time", "u_t", "velocity", "kinetic_energy", "external_work", "internal_work", "dissipated_work",
+     "motion_status", "motion_message", "motion_steps"}
     | set(VARIABLES)
     | {f"{event}_{suffix}" for event in (
         "limit_point", "bifurcation", "hill_loss", "controllability_loss", "flutter_onset", "divergence",

@@ -186,7 +186,8 @@ def path_cases(dataset: xr.Dataset) -> list[Case]:
     steps = {name: _values(dataset, name, dims, ("step",)) for name in _STEP_VARIABLES}
     status = _values(dataset, "status", dims, ())
     events = {}
-    for event in EVENT_MARKERS:
+    extrema = [str(name)[:-2] for name in dataset.data_vars if str(name).startswith("extremum_") and str(name).endswith("_F")]
+    for event in (*EVENT_MARKERS, *extrema):
         if f"{event}_F" not in dataset:
             continue
         events[event] = {

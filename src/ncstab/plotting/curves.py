@@ -28,15 +28,18 @@ import numpy as np
 import xarray as xr
 from matplotlib import rc_context
 from matplotlib.axes import Axes
+from matplotlib.colors import to_rgba
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
+from ncstab.plotting.case_styles import CaseStyles, case_styles
 from ncstab.plotting.cases import Case, CaseEvent, path_cases
 from ncstab.plotting.coincident_cases import coincidence_note, coincident_cases
 from ncstab.plotting.closed_form_overlays import (
     ClosedFormOverlay,
     closed_form_overlay,
 )
+from ncstab.plotting.event_markers import separate_event_markers
 from ncstab.plotting.legend import CLOSED_FORM_STYLE, Legend, event_style
 from ncstab.plotting.style import (
     AXIS_LABELS,
@@ -44,7 +47,6 @@ from ncstab.plotting.style import (
     FAILED_COLOUR,
     FIGURE_SIZE,
     RC_PARAMS,
-    case_colours,
     fixed_parameters_text,
     force_label,
     format_parameter,
@@ -99,6 +101,7 @@ class CurvesContext:
     normal: str
     description: str
     same_as: list[int | None]
+    styles: CaseStyles
 
     @property
     def rigid(self) -> bool:
@@ -110,7 +113,8 @@ class CurvesContext:
         if self.cases[k].failed:
             return dict(FAILED_STYLE)
         under_closed_form = overlaid and self.overlays[k] is not None
-        style = {**(PATH_WITH_CLOSED_FORM_STYLE if under_closed_form else PATH_STYLE), "color": self.colours[k]}
+        style = {**(PATH_WITH_CLOSED_FORM_STYLE if under_closed_form else PATH_STYLE),
+                 **self.styles.line(k, self.cases[k].n_steps, len(self.cases))}
         first = self.same_as[k]
         if first is not None:
             # The followers of one path take turns along it, a dash each, and leave one gap
@@ -119,7 +123,18 @@ class CurvesContext:
             period = COINCIDENT_DASH * (len(followers) + 1)
             offset = (period - COINCIDENT_DASH * followers.index(k)) % period
             style.update(linestyle=(offset, (COINCIDENT_DASH, period - COINCIDENT_DASH)), alpha=0.9, zorder=2.5)
+        if "marker" in style and "alpha" in style:  # a light band, its markers opaque: they tell the cases apart
+            opaque = to_rgba(style["color"])
+            style.update(color=to_rgba(opaque, style.pop("alpha")), markerfacecolor=opaque, markeredgecolor=opaque)
         return style
+
+    def legend(self) -> Legend:
+        """A new legend of these cases: one entry per case, or per law and per value of a
+        law x value grid (:mod:`ncstab.plotting.case_styles`)."""
+        legend = Legend(title=self.legend_title, factors=self.styles.factors)
+        if self.styles.factors is not None and any(case.failed for case in self.cases):
+            legend.extra.append((Line2D([], [], **FAILED_STYLE), "failed case (stopped early)"))
+        return legend
 
     def draws_overlay(self, k: int) -> bool:
         """Whether case k's closed form is drawn (not again for a coincident path)."""
@@ -137,16 +152,19 @@ def curves_context(dataset: xr.Dataset) -> CurvesContext:
         if first is not None:
             labels[k] += coincidence_note(cases, labels, k, first, normal == "rigid")
     description = str(dataset.attrs.get("study_description") or dataset.attrs.get("description") or "")
+    values = [", ".join(format_parameter(n, v) for n, v in case.swept.items()) for case in cases]
+    styles = case_styles([case.law for case in cases], values)
     return CurvesContext(
         dataset=dataset,
         cases=cases,
-        colours=case_colours([case.law for case in cases], len(cases)),
+        colours=styles.colours,
         labels=labels,
         legend_title=title,
         overlays=[closed_form_overlay(case, normal, secondary_contacts) for case in cases],
         normal=normal,
         description=description,
         same_as=same_as,
+        styles=styles,
     )
 
 
@@ -213,16 +231,16 @@ def mark_events(
     case = context.cases[k]
     colour = FAILED_COLOUR if case.failed else context.colours[k]
     points = []
-    for name in EVENT_MARKERS:
-        event = case.events.get(name)
-        if event is None:
+    for name, event in case.events.items():  # EVENT_MARKERS' order, then the extrema
+        kind = "extremum" if name.startswith("extremum_") else name
+        if kind not in EVENT_MARKERS:
             continue
         point = where(event)
         if not np.all(np.isfinite(point)):
             continue
         axes.plot(*[[c] for c in point], linestyle="none", zorder=5,
-                  gid=f"event:{name}:{case.label}", **event_style(name, colour))
-        legend.event(name)
+                  gid=f"event:{name}:{case.label}", **event_style(kind, colour))
+        legend.event(kind)
         points.append(point)
     return points
 
@@ -289,10 +307,12 @@ def _draw_overlay_2d(axes: Axes, context: CurvesContext, k: int, rotation: bool)
         axes.plot(branch.alpha if rotation else branch.D1, branch.F1,
                   color=overlay_colour(context, k, branch.name),
                   gid=f"closed_form:{branch.name}:{case.label}", label="_closed form", **CLOSED_FORM_STYLE)
-    if overlay.blocking is not None:
+    if overlay.blocking is not None:  # alpha = alpha_max from the first branch's end up to the path's top
         position = overlay.blocking.alpha if rotation else overlay.blocking.D1
-        axes.axvline(position, color=context.colours[k], gid=f"closed_form:blocking:{case.label}",
-                     label="_blocking", **CLOSED_FORM_STYLE)
+        start = overlay.branches[0].F1[-1] if overlay.branches else np.nanmin(case.F[:, 0])
+        top = max(float(np.nanmax(case.F[:, 0])), float(start))
+        axes.plot([position, position], [start, top], color=context.colours[k],
+                  gid=f"closed_form:blocking:{case.label}", label="_blocking", **CLOSED_FORM_STYLE)
 
 
 def _note_junction(axes: Axes, context: CurvesContext) -> None:
@@ -319,7 +339,7 @@ def planar_curves_figure(dataset: xr.Dataset, figure: Figure | None, kind: str) 
         context = curves_context(dataset)
         fig = new_figure(figure)
         axes = fig.add_subplot()
-        legend = Legend(title=context.legend_title)
+        legend = context.legend()
         xs, ys = [], []
         for k, case in enumerate(context.cases):
             x = case.alpha if rotation else case.u[:, 0]
@@ -336,6 +356,7 @@ def planar_curves_figure(dataset: xr.Dataset, figure: Figure | None, kind: str) 
             xs += [np.array([p[0]]) for p in points]
             ys += [np.array([p[1]]) for p in points]
         set_limits(axes, xs, ys)
+        separate_event_markers(axes)  # cases meeting an event at nearly one point: each marker shows
         axes.set_xlabel(AXIS_LABELS["alpha" if rotation else "D1"])
         axes.set_ylabel(force_label(context.normal))
         if rotation:

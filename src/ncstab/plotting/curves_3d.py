@@ -24,7 +24,7 @@ from ncstab.plotting.curves import (
     mark_events,
     overlay_colour,
 )
-from ncstab.plotting.legend import CLOSED_FORM_STYLE, Legend
+from ncstab.plotting.legend import CLOSED_FORM_STYLE
 from ncstab.plotting.style import AXIS_LABELS, FIGURE_SIZE, RC_PARAMS, force_label
 
 __all__ = ["VIEW", "curves_3d_figure"]
@@ -54,6 +54,10 @@ def _draw_overlay_3d(axes: Axes, context: CurvesContext, k: int, box: tuple[np.n
                   gid=f"closed_form:blocking:{case.label}", label="_blocking", **CLOSED_FORM_STYLE)
 
 
+#: Space between a 3-D axis and its label, points (6 let "0.025" run into the label).
+LABEL_PAD = 20
+
+
 def curves_3d_figure(dataset: xr.Dataset, figure: Figure | None = None) -> Figure:
     """3-D curves (Delta1*, alpha, F1), one per case, with events and closed forms.
 
@@ -72,7 +76,7 @@ def curves_3d_figure(dataset: xr.Dataset, figure: Figure | None = None) -> Figur
         else:
             fig = figure
             axes = fig.add_subplot(projection="3d")
-        legend = Legend(title=context.legend_title)
+        legend = context.legend()
         data = [np.column_stack([c.u[:, 0], c.alpha, c.F[:, 0]]) for c in context.cases]
         points = [p for p in data if p.size]
         stacked = np.concatenate(points) if points else np.empty((0, 3))
@@ -93,11 +97,11 @@ def curves_3d_figure(dataset: xr.Dataset, figure: Figure | None = None) -> Figur
             axes.set_xlim(box[0][0], box[1][0])
             axes.set_ylim(box[0][1], box[1][1])
             axes.set_zlim(box[0][2], box[1][2])
-        axes.set_xlabel(AXIS_LABELS["D1"], labelpad=6)
-        axes.set_ylabel(AXIS_LABELS["alpha"], labelpad=6)
-        axes.set_zlabel(force_label(context.normal), labelpad=6)
+        axes.set_xlabel(AXIS_LABELS["D1"], labelpad=LABEL_PAD)  # clear of the tick labels
+        axes.set_ylabel(AXIS_LABELS["alpha"], labelpad=LABEL_PAD)
+        axes.set_zlabel(force_label(context.normal), labelpad=LABEL_PAD)
         for axis in (axes.xaxis, axes.yaxis, axes.zaxis):
-            axis.set_major_locator(MaxNLocator(5))
+            axis.set_major_locator(MaxNLocator(4))
         axes.view_init(elev=VIEW[0], azim=VIEW[1])
         axes.set_box_aspect(None, zoom=0.88)
         fig.suptitle(figure_title(dataset, "load_displacement_rotation"), fontsize=10)

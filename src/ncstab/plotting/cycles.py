@@ -149,6 +149,8 @@ def cycle_work_figure(dataset: xr.Dataset, figure: Figure | None = None) -> Figu
                 gid="round_off_label",
             )
         top = float(every.max()) * 4 if every.size else 1.0
+        if hyper_values.size:  # room above the band for its label (not over the title)
+            top = max(top, bound * 30)
         ax.set_ylim(bottom, top)
         ax.set_xlim(0.5, layout.n_cycles + 0.5)
         ax.set_xticks(cycles)

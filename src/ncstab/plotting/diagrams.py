@@ -10,7 +10,8 @@ events (a column), the load F1* at which the event is located as a field over
 the parameter plane; cells where the event is not reached are light grey.  The
 region where Hill's condition fails strictly before the limit point
 (:func:`hill_before_limit`) is hatched and outlined in every panel of the law;
-failed cases are cross-hatched.
+failed cases are cross-hatched.  Every panel whose event is reached in fewer
+than 1 % of its cells says so (:func:`sparse_note`), its few cells circled.
 
 Built with :class:`matplotlib.figure.Figure` (no pyplot) under the project
 style; the caller saves the figure.  See ``docs/stability-diagrams.md``.
@@ -51,6 +52,7 @@ __all__ = [
     "failed_cases",
     "hill_before_limit",
     "parameter_label",
+    "sparse_note",
     "stability_diagram_figure",
 ]
 
@@ -75,8 +77,23 @@ FAILED_HATCH = "xxx"
 FAILED_COLOUR = "0.35"
 #: Colormap of the event load F1*.
 FIELD_COLORMAP = "viridis"
+#: A panel whose event is reached in fewer cells than this share of them says so in a note
+#: (none reached: "not reached"; a few: how many, circled), like every other such panel.
+SPARSE_FRACTION = 0.01
 #: Size of one panel, inches (width, height).
 PANEL_SIZE = (2.9, 2.3)
+
+
+def sparse_note(field: np.ndarray) -> str | None:
+    """The note of a panel whose event is reached in fewer than :data:`SPARSE_FRACTION` of its
+    cells: ``"not reached\nin this plane"``, or ``"reached in 1 of 4,096\ncells (circled)"``;
+    None for a panel that shows its field."""
+    reached, total = int(np.isfinite(field).sum()), int(field.size)
+    if reached >= SPARSE_FRACTION * total:
+        return None
+    if reached == 0:
+        return "not reached\nin this plane"
+    return f"reached in {reached:,} of {total:,}\ncells only (circled)"
 
 
 def diagram_dims(dataset: xr.Dataset) -> tuple[str, str]:
@@ -222,9 +239,17 @@ def stability_diagram_figure(dataset: xr.Dataset, figure: Figure | None = None) 
                     lines.set_gid(f"hill_before_limit_outline:{law}")
                     axes.add_collection(lines)
                 hatch_cells(axes, failed[row], x_edges, y_edges, FAILED_HATCH, FAILED_COLOUR, f"failed:{law}")
-                if not np.isfinite(field[row]).any():
-                    axes.text(0.5, 0.5, "not reached\nin this plane", transform=axes.transAxes, ha="center",
-                              va="center", color="0.45", fontsize=9, gid=f"not_reached:{law}")
+                note = sparse_note(field[row])
+                if note is not None:  # every nearly empty panel says so, the same way
+                    axes.text(0.5, 0.5, note, transform=axes.transAxes, ha="center",
+                              va="center", color="0.3", fontsize=9, gid=f"not_reached:{law}")
+                    rows_at, columns_at = np.nonzero(np.isfinite(field[row]))
+                    if rows_at.size:  # the few cells reached, circled: a cell alone is hard to see
+                        x_mid = (x_edges[columns_at] + x_edges[columns_at + 1]) / 2
+                        y_mid = (y_edges[rows_at] + y_edges[rows_at + 1]) / 2
+                        axes.plot(x_mid, y_mid, linestyle="none", marker="o", markersize=9, markerfacecolor="none",
+                                  markeredgecolor="crimson", markeredgewidth=1.2, clip_on=False,
+                                  gid=f"sparse_cells:{event}:{law}")
                 axes.set_xscale("log" if x_log else "linear")
                 axes.set_yscale("log" if y_log else "linear")
                 axes.set_xlim(x_edges[0], x_edges[-1])

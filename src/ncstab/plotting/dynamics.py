@@ -17,11 +17,14 @@ Drawn from a Dataset alone: the spectrum stored along the paths
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import xarray as xr
 from matplotlib import rc_context
 from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 
 from ncstab.plotting.style import FIGURE_SIZE, RC_PARAMS
 from ncstab.plotting.sweep_shape import sweep_shape
@@ -30,6 +33,10 @@ __all__ = ["damping_map_figure", "frequencies_figure", "root_locus_figure"]
 
 #: Cases drawn by the spectrum figures (one panel each).
 MAX_PANELS = 4
+#: Size of one root-locus panel, inches (width, height).
+PANEL_WIDTH, PANEL_HEIGHT = 2.6, 2.6
+#: Most ticks on the Re s axis (its labels are long: "-0.025").
+RE_TICKS = 4
 
 
 def _require(dataset: xr.Dataset, names: tuple[str, ...], kind: str) -> None:
@@ -57,15 +64,41 @@ def _spectrum(dataset: xr.Dataset, index: dict) -> tuple[np.ndarray, np.ndarray,
     return load, dataset["spectrum_re"].isel(index).values[:n], dataset["spectrum_im"].isel(index).values[:n]
 
 
+def _panel_grid(n: int) -> tuple[int, int]:
+    """(rows, columns) of the spectrum panels: side by side up to three, else two columns."""
+    return (1, n) if n <= 3 else (math.ceil(n / 2), 2)
+
+
+def _cases_note(dataset: xr.Dataset, cases: list[dict]) -> str:
+    """``" (the first 4 of 13 cases)"`` when the panels do not show every case, else ``""``."""
+    total = sweep_shape(dataset).n_cases
+    return f" (the first {len(cases)} of {total} cases)" if total > len(cases) else ""
+
+
 def root_locus_figure(dataset: xr.Dataset, figure: Figure | None = None) -> Figure:
-    """Re s against Im s of every root along the path, coloured by the load, per case."""
+    """Re s against Im s of every root along the path, coloured by the load, per case.
+
+    One panel per case (at most :data:`MAX_PANELS`: a row of up to three,
+    two columns for four), each at least :data:`PANEL_WIDTH` inches wide with at most
+    :data:`RE_TICKS` ticks on Re s (the real parts are small beside the
+    imaginary ones: more ticks collide).  The flutter onset is starred on the
+    root that crosses, its load written in the panel's title; one legend and
+    one colour bar (the load) serve every panel, below and beside them.
+    """
     _require(dataset, ("spectrum_re", "spectrum_im", "load"), "root_locus")
     cases = _cases(dataset)
+    rows, columns = _panel_grid(len(cases))
+    parameter = dataset.attrs.get("load_parameter", "P")
     with rc_context(RC_PARAMS):
-        figure = figure if figure is not None else Figure(figsize=FIGURE_SIZE, layout="constrained")
-        panels = figure.subplots(1, len(cases), squeeze=False)[0]
+        size = (max(FIGURE_SIZE[0], columns * PANEL_WIDTH + 1.6), max(FIGURE_SIZE[1], rows * PANEL_HEIGHT + 1.4))
+        figure = figure if figure is not None else Figure(figsize=size, layout="constrained")
+        grid = figure.subplots(rows, columns, squeeze=False, sharex=True, sharey=True)
+        panels = list(grid.ravel())
+        for spare in panels[len(cases):]:
+            spare.set_visible(False)
         loads = dataset["load"].values
         norm = Normalize(np.nanmin(loads), np.nanmax(loads))
+        onset_handle = None
         for axes, index in zip(panels, cases):
             load, real, imag = _spectrum(dataset, index)
             points = axes.scatter(
@@ -73,17 +106,24 @@ def root_locus_figure(dataset: xr.Dataset, figure: Figure | None = None) -> Figu
                 gid="roots",
             )
             onset = float(dataset["flutter_onset_load"].isel(index)) if "flutter_onset_load" in dataset else np.nan
+            title = _panel_title(dataset, index)
             if np.isfinite(onset):
                 k = int(np.nanargmin(np.abs(load - onset)))
-                axes.plot(real[k], imag[k], "*", color="k", markersize=10, linestyle="none", gid="event:flutter_onset",
-                          label=f"flutter onset, P = {onset:.4g}")
-                axes.legend(loc="lower left")
+                (onset_handle,) = axes.plot(real[k], imag[k], "*", color="k", markersize=10, linestyle="none",
+                                            gid="event:flutter_onset", label="flutter onset")
+                title = f"{title}\nflutter at {parameter} = {onset:.4g}" if title else f"flutter at {parameter} = {onset:.4g}"
             axes.axvline(0.0, color="0.3", linewidth=0.8)
+            axes.xaxis.set_major_locator(MaxNLocator(RE_TICKS, symmetric=True, prune="both"))  # apart from the next panel's
+            axes.set_title(title, fontsize=9)
+        for axes in grid[-1]:
             axes.set_xlabel("Re s")
-            axes.set_title(_panel_title(dataset, index), fontsize=9)
-        panels[0].set_ylabel("Im s")
-        figure.colorbar(points, ax=list(panels), label=f"load {dataset.attrs.get('load_parameter', 'P')}")
-        figure.suptitle("Root locus of det(M s² + C s + K) along the path")
+        for axes in grid[:, 0]:
+            axes.set_ylabel("Im s")
+        figure.colorbar(points, ax=panels, label=f"load {parameter}", shrink=0.8)
+        if onset_handle is not None:
+            figure.legend([onset_handle], ["flutter onset: a pair of roots crosses into Re s > 0"],
+                          loc="outside lower center").set_gid("legend")
+        figure.suptitle("Root locus of det(M s² + C s + K) along the path" + _cases_note(dataset, cases))
     return figure
 
 
@@ -91,9 +131,13 @@ def frequencies_figure(dataset: xr.Dataset, figure: Figure | None = None) -> Fig
     """The frequencies Im s >= 0 against the load; thick where Re s > 0 (unstable)."""
     _require(dataset, ("spectrum_re", "spectrum_im", "load"), "frequencies")
     cases = _cases(dataset)
+    parameter = dataset.attrs.get("load_parameter", "P")
     with rc_context(RC_PARAMS):
-        figure = figure if figure is not None else Figure(figsize=FIGURE_SIZE, layout="constrained")
-        panels = figure.subplots(1, len(cases), squeeze=False, sharey=True)[0]
+        rows, columns = _panel_grid(len(cases))
+        size = (max(FIGURE_SIZE[0], columns * PANEL_WIDTH + 1.0), max(FIGURE_SIZE[1], rows * PANEL_HEIGHT + 1.2))
+        figure = figure if figure is not None else Figure(figsize=size, layout="constrained")
+        grid = figure.subplots(rows, columns, squeeze=False, sharey=True)
+        panels = list(grid.ravel())
         for axes, index in zip(panels, cases):
             load, real, imag = _spectrum(dataset, index)
             upper = imag >= 0
@@ -103,14 +147,15 @@ def frequencies_figure(dataset: xr.Dataset, figure: Figure | None = None) -> Fig
                 axes.plot(load, frequency[:, root], ".", color="C0", markersize=2.5, gid="frequency")
                 axes.plot(load, growing[:, root], ".", color="C3", markersize=4.0, gid="unstable")
             onset = float(dataset["flutter_onset_load"].isel(index)) if "flutter_onset_load" in dataset else np.nan
-            if np.isfinite(onset):
+            title = _panel_title(dataset, index)
+            if np.isfinite(onset):  # said in the title: a note beside the line may leave a narrow panel
                 axes.axvline(onset, color="k", linewidth=0.8, linestyle=(0, (4, 2.5)), gid="event:flutter_onset")
-                axes.annotate(f"flutter onset\nP = {onset:.4g}", (onset, 0.02), xycoords=("data", "axes fraction"),
-                              xytext=(4, 0), textcoords="offset points", fontsize=8)
-            axes.set_xlabel(f"load {dataset.attrs.get('load_parameter', 'P')}")
-            axes.set_title(_panel_title(dataset, index), fontsize=9)
-        panels[0].set_ylabel("frequency Im s ≥ 0 (red: Re s > 0)")
-        figure.suptitle("Frequencies of M s² + C s + K along the path")
+                title = "\n".join(filter(None, [title, f"flutter onset (dashed) at {parameter} = {onset:.4g}"]))
+            axes.set_xlabel(f"load {parameter}")
+            axes.set_title(title, fontsize=9)
+        for axes in grid[:, 0]:
+            axes.set_ylabel("frequency Im s ≥ 0 (red: Re s > 0)")
+        figure.suptitle("Frequencies of M s² + C s + K along the path" + _cases_note(dataset, cases))
     return figure
 
 

@@ -25,6 +25,7 @@ from collections.abc import Callable
 import xarray as xr
 from matplotlib.figure import Figure
 
+from ncstab.plotting.boundaries import boundary_figure
 from ncstab.plotting.curves import planar_curves_figure
 from ncstab.plotting.curves_3d import curves_3d_figure
 from ncstab.plotting.cycle_paths import cycle_paths_figure
@@ -38,6 +39,7 @@ from ncstab.plotting.maps import (
 )
 from ncstab.plotting.parameter_plane import parameter_plane_figure
 from ncstab.plotting.dynamics import damping_map_figure, frequencies_figure, root_locus_figure
+from ncstab.plotting.motion import energies_figure, motion_figure, phase_portrait_figure
 from ncstab.plotting.model_paths import is_seed_diamond, model_path_figure
 from ncstab.plotting.stability_curves import stability_curves_figure
 from ncstab.plotting.sweep_shape import sweep_shape
@@ -168,4 +170,8 @@ FIGURE_KINDS: dict[str, Callable[..., Figure]] = {
     "root_locus": root_locus_figure,
     "frequencies": frequencies_figure,
     "damping_map": damping_map_figure,
+    "motion": motion_figure,
+    "phase_portrait": phase_portrait_figure,
+    "energies": energies_figure,
+    "boundary": boundary_figure,
 }

@@ -96,6 +96,8 @@ class Legend:
     equations: set[int] = field(default_factory=set)
     events: dict[str, Line2D] = field(default_factory=dict)
     extra: list[tuple[object, str]] = field(default_factory=list)
+    #: Entries that replace the curves' (the laws and the values of a law x value grid).
+    factors: list[tuple[object, str]] | None = None
 
     def curve(self, handle: object, label: str) -> None:
         self.curves.append((handle, label))
@@ -113,7 +115,7 @@ class Legend:
         return "closed form (seed Eq. " + ", ".join(str(n) for n in sorted(self.equations)) + ")"
 
     def entries(self) -> tuple[list[object], list[str]]:
-        curves = self.curves  # at most MAX_CURVES: larger sweeps are fans or planes
+        curves = self.curves if self.factors is None else self.factors  # at most MAX_CURVES: larger sweeps are fans or planes
         handles = [h for h, _ in curves] + [h for h, _ in self.extra]
         labels = [t for _, t in curves] + [t for _, t in self.extra]
         if self.equations:

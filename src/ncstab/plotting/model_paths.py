@@ -31,7 +31,8 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 from ncstab.plotting.legend import event_style
-from ncstab.plotting.style import EVENT_MARKERS, FIGURE_SIZE, RC_PARAMS, case_colours, format_parameter, law_display_name
+from ncstab.plotting.case_styles import case_styles
+from ncstab.plotting.style import EVENT_MARKERS, FIGURE_SIZE, RC_PARAMS, format_parameter, law_display_name
 from ncstab.plotting.sweep_shape import MAX_CURVES, sweep_shape
 
 __all__ = ["PathAxes", "is_seed_diamond", "model_path_figure", "path_axes"]
@@ -135,17 +136,24 @@ def model_path_figure(dataset: xr.Dataset, figure: Figure | None = None, kind: s
         figure = figure if figure is not None else Figure(figsize=FIGURE_SIZE, layout="constrained")
         axes = figure.add_subplot()
         cases = list(np.ndindex(*[shape.sizes[d] for d in shape.dims]))[: max(MAX_CURVES, 1)]
-        colours = case_colours(list(shape.laws), len(cases))
+        indices = [dict(zip(shape.dims, position)) for position in cases]
+        laws = [str(dataset["law"].values[index["law"]]) if "law" in index else "" for index in indices]
+        styles = case_styles(laws, [_case_label(dataset, {d: v for d, v in index.items() if d != "law"})
+                                    for index in indices], law_linestyles=not conservative)
+        colours = styles.colours
         x_all, y_all = axes_of.values(dataset, "x"), axes_of.values(dataset, "y")
-        for k, position in enumerate(cases):
-            index = dict(zip(shape.dims, position))
+        for k, index in enumerate(indices):
             n = int(dataset["n_steps"].isel(index))
+            first = _branch_start(dataset, index, n)
             x, y = _member(x_all.isel(index).values[:n]), _member(y_all.isel(index).values[:n])
             stable = dataset["hill"].isel(index).values[:n] > 0 if conservative else np.ones(n, dtype=bool)
             label = _case_label(dataset, index)
-            for piece, solid in _pieces(stable):
-                axes.plot(x[piece], y[piece], color=colours[k], linestyle="-" if solid else (0, (4, 2.5)),
-                          gid=f"path:{label}", label=label if piece[0] == 0 else None)
+            style = styles.line(k, n - first, len(indices))
+            for piece, solid in _pieces(stable[first:]):
+                piece = piece + first
+                linestyle = style["linestyle"] if solid else (0, (4, 2.5))
+                axes.plot(x[piece], y[piece], **{**style, "linestyle": linestyle},
+                          gid=f"path:{label}", label=label if piece[0] == first else None)
             for event in MARKED_EVENTS:
                 point = _event_point(dataset, axes_of, event, index)
                 if point is not None:
@@ -154,6 +162,8 @@ def model_path_figure(dataset: xr.Dataset, figure: Figure | None = None, kind: s
         axes.set_ylabel(axes_of.label(dataset, "y"))
         axes.set_title(str(dataset.attrs.get("study_description") or dataset.attrs.get("system", "")), wrap=True)
         handles, labels = axes.get_legend_handles_labels()
+        if styles.factors is not None:  # a law x value grid: each law and each value once
+            handles, labels = [h for h, _ in styles.factors], [t for _, t in styles.factors]
         for event in MARKED_EVENTS:
             if any(str(line.get_gid()).startswith(f"event:{event}:") for line in axes.lines):
                 handles.append(Line2D([], [], linestyle="none", **event_style(event, "0.5")))
@@ -163,6 +173,21 @@ def model_path_figure(dataset: xr.Dataset, figure: Figure | None = None, kind: s
             labels.append("unstable (smallest eigenvalue of K < 0)")
         axes.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
     return figure
+
+
+def _branch_start(dataset: xr.Dataset, index: dict, n: int) -> int:
+    """First state drawn of a case: on a bifurcated branch (``branch`` != 0) the last state
+    of the path shared with the straight one (arclength up to the bifurcation's), so that
+    the branch starts where it leaves the path and the shared part keeps the path's colour."""
+    if "branch" not in index or float(dataset["branch"].values[index["branch"]]) == 0:
+        return 0
+    if "bifurcation_s" not in dataset:
+        return 0
+    at = float(dataset["bifurcation_s"].isel(index))
+    s = dataset["s"].isel(index).values[:n]
+    if not np.isfinite(at) or s.size == 0:
+        return 0
+    return int(max(np.searchsorted(s, at, side="right") - 1, 0))
 
 
 def _member(values: np.ndarray) -> np.ndarray:

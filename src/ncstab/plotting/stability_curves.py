@@ -15,20 +15,71 @@ from collections.abc import Callable
 import numpy as np
 import xarray as xr
 from matplotlib import rc_context
+from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from ncstab.plotting.cases import Case, CaseEvent
-from ncstab.plotting.curves import curves_context, figure_title, mark_events, new_figure, set_limits
-from ncstab.plotting.legend import Legend
-from ncstab.plotting.style import AXIS_LABELS, RC_PARAMS
+from ncstab.plotting.curves import curves_context, figure_title, mark_events, set_limits
+from ncstab.plotting.style import AXIS_LABELS, FIGURE_SIZE, RC_PARAMS
 
-__all__ = ["D2W_EXPLANATION", "d2w_line", "stability_curves_figure"]
+__all__ = ["D2W_EXPLANATION", "DYNAMIC_RANGE", "d2w_line", "stability_curves_figure", "symlog_if_spread"]
 
 #: What the third panel shows, written on it.
 D2W_EXPLANATION = (
     r"$d^2W = dF\cdot d\Delta\,/\,(|dF|\,|d\Delta|)$ along the path, in $[-1, 1]$;"
     "\nbroken where it jumps (a limit point: dF turns back; a new stage)"
 )
+
+
+#: Size of the stability figure, inches: three stacked panels and a legend below.
+STABILITY_FIGURE_SIZE = (FIGURE_SIZE[0], 6.6)
+#: Legend lines the figure of STABILITY_FIGURE_SIZE holds below its panels; inches per line more.
+LEGEND_LINES, LEGEND_LINE_HEIGHT = 8, 0.2
+#: Y labels of the panels, on two lines (a long rotated label outgrows a short panel).
+PANEL_LABELS = {"det_K": AXIS_LABELS["det_K"], "hill": AXIS_LABELS["hill"], "d2W": "$d^2W$\n(normalised)"}
+#: The det K panel is drawn on a symlog scale when the typical |det K| of its cases spans
+#: more than this factor (on a linear scale the largest curve flattens the others).
+DYNAMIC_RANGE = 30.0
+
+
+def _figure_size(context) -> tuple[float, float]:
+    """:data:`STABILITY_FIGURE_SIZE`, taller by a line's height per legend line past
+    :data:`LEGEND_LINES` (the legend below must not squeeze the three panels)."""
+    if context.styles.factors is not None:
+        lines = len(context.styles.factors)
+    else:
+        lines = sum(label.count("\n") + 1 for label in context.labels)
+    width, height = STABILITY_FIGURE_SIZE
+    return width, height + LEGEND_LINE_HEIGHT * max(0, lines - LEGEND_LINES)
+
+
+def symlog_if_spread(axes: Axes, values: list[np.ndarray]) -> float | None:
+    """Put the axes' y on a symlog scale when the curves' magnitudes spread over decades.
+
+    The magnitude of a curve is the median of its finite, non-zero ``|values|``.
+    When the largest is more than :data:`DYNAMIC_RANGE` times the smallest, y
+    becomes ``symlog``: linear within ``linthresh`` of zero (so a sign change,
+    det K = 0 at a limit point, stays a crossing of the zero line) and
+    logarithmic beyond, with ``linthresh`` the power of ten at or below the
+    smallest magnitude.  The y label says so.
+
+    Returns
+    -------
+    float or None
+        ``linthresh``, or None where y stays linear.
+    """
+    magnitudes = []
+    for array in values:
+        finite = np.abs(np.asarray(array, dtype=float))
+        finite = finite[np.isfinite(finite) & (finite > 0)]
+        if finite.size:
+            magnitudes.append(float(np.median(finite)))
+    if len(magnitudes) < 2 or max(magnitudes) <= DYNAMIC_RANGE * min(magnitudes):
+        return None
+    linthresh = 10.0 ** np.floor(np.log10(min(magnitudes)))
+    axes.set_yscale("symlog", linthresh=linthresh)
+    axes.set_ylabel(f"{axes.get_ylabel()}\n(symlog, linear\nbelow {linthresh:g})")
+    return linthresh
 
 
 def _det_at_event(case: Case, event: CaseEvent) -> float:
@@ -90,9 +141,9 @@ def stability_curves_figure(dataset: xr.Dataset, figure: Figure | None = None) -
     """
     with rc_context(RC_PARAMS):
         context = curves_context(dataset)
-        fig = new_figure(figure)
+        fig = figure if figure is not None else Figure(figsize=_figure_size(context), layout="constrained")
         panels = fig.subplots(len(STABILITY_PANELS), 1, sharex=True)
-        legend = Legend(title=context.legend_title)
+        legend = context.legend()
         listed: set[int] = set()
         for axes, (name, at_event) in zip(panels, STABILITY_PANELS):
             drawn = False
@@ -109,7 +160,9 @@ def stability_curves_figure(dataset: xr.Dataset, figure: Figure | None = None) -
                 mark_events(axes, context, legend, k,
                             lambda e, case=case, at_event=at_event: (e.u[0], at_event(case, e)))
                 drawn = True
-            axes.set_ylabel(AXIS_LABELS[name])
+            axes.set_ylabel(PANEL_LABELS[name])
+            if name == "det_K" and drawn:
+                symlog_if_spread(axes, [case.det_K for case in context.cases])
             if drawn:
                 axes.axhline(0.0, color="k", linewidth=0.8, zorder=1)
                 if name == "d2W":
@@ -125,6 +178,7 @@ def stability_curves_figure(dataset: xr.Dataset, figure: Figure | None = None) -
         if not listed:
             set_limits(panels[-1], [case.u[:, 0] for case in context.cases], [])
         panels[-1].set_xlabel(AXIS_LABELS["D1"])
+        fig.align_ylabels(panels)
         fig.suptitle(figure_title(dataset, "stability", width=80), fontsize=10)
         legend.draw(fig, panels[0], place="below")  # the right side would collide with the title
     return fig

@@ -104,6 +104,8 @@ EVENT_MARKERS: dict[str, tuple[str, float, bool, str]] = {
     "flutter_onset": ("*", 11.0, True, "flutter onset"),
     "bifurcation": ("D", 8.0, True, "bifurcation point"),
     "divergence": ("P", 9.0, True, "divergence"),
+    # every extremum_<name> of [output] extrema (ncstab.paths.extrema) takes this style
+    "extremum": ("p", 9.0, True, "first extremum ([output] extrema)"),
 }
 
 #: Cases of one law from which colours follow a colormap.

@@ -36,11 +36,13 @@ __all__ = [
     "COMPRESSION",
     "ENGINE",
     "INTEGER_FILL_VALUE",
+    "LOAD_ALIAS",
     "integer_fill_value",
     "normalise_dataset",
     "open_study",
     "open_study_lazily",
     "remove_stale_temporaries",
+    "with_load_level",
     "write_dataset",
 ]
 
@@ -305,6 +307,25 @@ def remove_stale_temporaries(destination: str | os.PathLike[str]) -> list[FilePa
     return removed
 
 
+#: The alias of the variable ``load``: ``ds.load`` is xarray's ``Dataset.load`` method,
+#: ``ds.load_level`` the load parameter at every stored state.
+LOAD_ALIAS = "load_level"
+
+
+def with_load_level(dataset: xr.Dataset) -> xr.Dataset:
+    """``dataset`` with :data:`LOAD_ALIAS` beside ``load`` (the same values), where it has
+    ``load`` and not the alias: written in every new archive, made on reading an older one."""
+    if "load" not in dataset.data_vars or LOAD_ALIAS in dataset.variables:
+        return dataset
+    from ncstab.paths.variables import VARIABLES
+
+    units, long_name, description = VARIABLES[LOAD_ALIAS]
+    alias = dataset["load"].variable.copy(deep=False)
+    alias.attrs = {"long_name": long_name, "description": description, "units": units}
+    alias.encoding = {}
+    return dataset.assign({LOAD_ALIAS: alias})
+
+
 def open_study(path: str | os.PathLike[str], fill_missing_events: bool = False) -> xr.Dataset:
     """Read an archive written by :func:`write_dataset` fully into memory, verified.
 
@@ -347,6 +368,7 @@ def open_study(path: str | os.PathLike[str], fill_missing_events: bool = False) 
                 raise ArchiveError(path, f"variable {name!r} cannot be read (damaged data?): {error}") from None
         result = verified(normalise_dataset(dataset), path)
     check_archive(result, path)
+    result = with_load_level(result)
     if fill_missing_events:
         from ncstab.studies.archive_selection import fill_left_out_events
 
@@ -380,4 +402,4 @@ def open_study_lazily(path: str | os.PathLike[str]) -> Iterator[xr.Dataset]:
     with opened(path) as dataset:
         result = verified(normalise_dataset(dataset), path)
         check_archive(result, path)
-        yield result
+        yield with_load_level(result)

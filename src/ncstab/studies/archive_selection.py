@@ -93,7 +93,8 @@ FIGURE_VARIABLES: dict[str, tuple[str, ...]] = {
 
 
 def study_variable_names(
-    system: Any, programme: LoadingProgramme, study_map: Any = None, spectrum: bool = False
+    system: Any, programme: LoadingProgramme, study_map: Any = None, spectrum: bool = False,
+    extrema: Sequence[str] = (),
 ) -> tuple[str, ...]:
     """The data variables of a study's archive with every variable stored.
 
@@ -105,8 +106,9 @@ def study_variable_names(
     system
         The study's :class:`~ncstab.paths.options.SystemSpec` or
         :class:`~ncstab.systems.SystemDefinition`.
-    programme, study_map, spectrum
-        The study's loading programme, ``[map]`` section (or None) and ``[output] spectrum``.
+    programme, study_map, spectrum, extrema
+        The study's loading programme, ``[map]`` section (or None), ``[output] spectrum``
+        and ``[output] extrema``.
     """
     from ncstab.paths.dataset import event_field_dims
     from ncstab.paths.variables import family_fields
@@ -133,6 +135,10 @@ def study_variable_names(
         names.append("flutter_onset_frequency")
     if study_map is not None and study_map.grid is not None:
         names += list(STATE_MAP_FIELDS)
+    if extrema:
+        from ncstab.paths.extrema import extremum_names
+
+        names += extremum_names(definition, extrema)
     return tuple(names)
 
 
@@ -228,7 +234,7 @@ def archive_selection(study: "Study") -> ArchiveSelection:
 
     if study.variables == ALL_VARIABLES:
         return ArchiveSelection()
-    available = study_variable_names(study.system, study.programme, study.map, study.spectrum)
+    available = study_variable_names(study.system, study.programme, study.map, study.spectrum, study.extrema)
     if study.variables is not None:
         return ArchiveSelection(frozenset(_expanded(study.variables, available)) | frozenset(REQUIRED_VARIABLES))
     if ParameterGrid.from_mapping(study.parameters).size <= LEAN_ABOVE_CASES:

@@ -1,7 +1,6 @@
 """Named errors of runs and archives, each with the exit code ``ncstab`` gives it.
 
-The exit codes are the contract of every command (ARCHITECTURE.md, "Exit
-codes"; docs/when-things-go-wrong.md):
+The exit codes are the contract of every command (docs/when-things-go-wrong.md):
 
 * 0 -- success; 1 -- the archive was written but some case failed;
 * 2 -- invalid input, nothing run or written (:class:`InvalidInputError`: a

@@ -41,6 +41,8 @@ class FigureFit:
         The system has inertia and a load parameter (a spectrum along the load).
     dashpots
         Both dashpots b1 and b2 are swept (a damping map).
+    motion
+        The programme ends with a dynamic stage (a motion in time).
     """
 
     cycles: bool
@@ -51,6 +53,7 @@ class FigureFit:
     seed_diamond: bool = True
     spectrum: bool = False
     dashpots: bool = False
+    motion: bool = False
 
 
 def figure_fit(
@@ -78,6 +81,7 @@ def figure_fit(
         seed_diamond=seed,
         spectrum=definition.mass is not None and definition.load is not None,
         dashpots={"b1", "b2"} <= swept,
+        motion=getattr(programme, "dynamic", None) is not None,
     )
 
 
@@ -96,6 +100,9 @@ def figure_misfit(kind: str, fit: FigureFit) -> str | None:
     if kind in ("root_locus", "frequencies") and not fit.spectrum:
         return (f"figure kind {kind!r} draws the dynamic spectrum along the load: it needs a system with "
                 "inertia and a load parameter (ziegler)")
+    if kind in ("motion", "phase_portrait", "energies") and not fit.motion:
+        return (f"figure kind {kind!r} draws the motion of a dynamic stage, and the loading programme has none; "
+                "add one ([[loading]] dynamic = { duration = 40.0, perturbation = { ... } }) or remove the kind")
     if kind == "damping_map" and not fit.dashpots:
         return "figure kind 'damping_map' needs a sweep over both dashpots b1 and b2 (ziegler)"
     if kind in SEED_DIAMOND_KINDS and not fit.seed_diamond:

@@ -21,6 +21,10 @@ FIGURE_KINDS = (
     "root_locus",
     "frequencies",
     "damping_map",
+    "motion",
+    "phase_portrait",
+    "energies",
+    "boundary",
 )
 
 

@@ -24,7 +24,9 @@ from ncstab.paths.programme import (
     LoadingProgramme,
 )
 from ncstab.studies.archive_selection import read_variables, study_variable_names
+from ncstab.studies.boundary_fields import BoundarySpec, boundary_figures, boundary_section, check_boundary_model
 from ncstab.studies.figure_fit import figure_fit
+from ncstab.studies.study_extrema import extrema_option
 from ncstab.studies.study_fields import (
     DEFAULT_FIGURES,
     DEFAULT_MAX_CASES,
@@ -129,6 +131,13 @@ class Study:
         names stand for their tables), ``"all"``, or None for the default
         (every one up to 1,000 cases per law, the lean archive above:
         :func:`~ncstab.studies.archive_selection.archive_selection`).
+    extrema
+        ``[output] extrema``: the state variables whose first extremum along
+        the path is located (the event ``extremum_<name>``,
+        :mod:`ncstab.paths.extrema`).
+    boundary
+        ``[boundary]``: the stability boundary traced as a curve instead of a
+        sweep of paths (:func:`ncstab.boundaries.boundary`), or ``None``.
     """
 
     name: str
@@ -147,6 +156,8 @@ class Study:
     user_laws: tuple[LawDefinition, ...] = ()
     max_cases: int = DEFAULT_MAX_CASES
     variables: str | tuple[str, ...] | None = None
+    extrema: tuple[str, ...] = ()
+    boundary: BoundarySpec | None = None
 
     def law_definition(self, name: str) -> LawDefinition:
         """The definition of one of :attr:`laws` (a user law of the file or a catalogue law)."""
@@ -211,14 +222,20 @@ def parse_study(text: str, path: str | None = None) -> Study:
     parameters, fields, free = read_parameters(data, errors, system, system_raw, specs, definitions)
     programme, references = loading_section(data, errors, kind, system)
     known = [k for k in specs if not (system.normal == "rigid" and k in RIGID_MEANINGLESS)]
-    check_references(errors, references, fields, free, known)
+    if kind is not None:  # else the stages were not read: which parameters they use is unknown
+        check_references(errors, references, fields, free, known)
     options, max_cases = options_section(data, errors)
     study_map = map_section(data, errors)
     fit = None if errors.items else figure_fit(programme, parameters, study_map, definitions, system)
     figures, output = output_section(data, errors, fit)
+    boundary = boundary_section(data, errors, None if errors.items else parameters)
+    figures = boundary_figures(data, errors, boundary, figures)
+    if boundary is not None and not errors.items:
+        check_boundary_model(boundary, system, [law_definition(n, user_laws) for n in laws], programme, parameters, errors)
     spectrum = spectrum_option(data, errors, figures, system)
     output_table = data.get("output") if isinstance(data.get("output"), dict) else {}
-    available = None if errors.items else study_variable_names(system, programme, study_map, spectrum)
+    extrema = extrema_option(output_table, errors, system)
+    available = None if errors.items else study_variable_names(system, programme, study_map, spectrum, extrema)
     variables = read_variables(output_table, errors, available, figures)
     if not errors.items and programme is not None:
         check_stages_do_something(programme, parameters, errors)
@@ -251,6 +268,8 @@ def parse_study(text: str, path: str | None = None) -> Study:
         user_laws=tuple(user_laws.values()),
         max_cases=max_cases,
         variables=variables,
+        extrema=extrema,
+        boundary=boundary,
     )
 
 

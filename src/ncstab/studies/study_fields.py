@@ -18,7 +18,7 @@ from ncstab.studies.expressions import ExpressionError, evaluate_expression
 from ncstab.studies.figure_kinds import DEFAULT_FIGURES, FIGURE_KINDS
 
 #: Sections of a study file, in the order they are documented.
-SECTIONS = ("study", "system", "laws", "parameters", "loading", "options", "map", "output")
+SECTIONS = ("study", "system", "laws", "parameters", "loading", "options", "map", "output", "boundary")
 
 
 
@@ -36,13 +36,13 @@ SYSTEM_KEYS = ("name", "secondary_contacts", "normal")
 ALL_SETTINGS = ("reduction", "grains", "links", "load")
 
 
-STAGE_KEYS = ("hold", "drive", "stop_at", "cycle", "at_bifurcation")
+STAGE_KEYS = ("hold", "drive", "stop_at", "cycle", "at_bifurcation", "dynamic")
 
 
 CYCLE_KEYS = ("center", "turns", "direction", "dofs")
 
 
-OUTPUT_KEYS = ("figures", "file", "spectrum", "variables")
+OUTPUT_KEYS = ("figures", "file", "spectrum", "variables", "extrema")
 
 
 #: Figure kinds drawn from the dynamic spectrum (which they store).

@@ -154,17 +154,23 @@ def loading_section(
     if not isinstance(stages, list) or not stages:
         errors.add("loading", "give at least one [[loading]] stage")
         return None, references
-    if kind is not None:
-        definition = system.definition
-        dofs, forces, load = definition.dofs, definition.forces, definition.load_parameter
-    else:
-        dofs, forces, load = ("D1", "D2"), ("F1", "F2"), None
+    if kind is None:  # the system's own error is reported: its dofs are unknown, so are the stages' quantities
+        return None, references
+    definition = system.definition
+    dofs, forces, load = definition.dofs, definition.forces, definition.load_parameter
     clean: list[dict[str, Any]] = []
+    dynamic = None
     before = len(errors)
     for number, raw in enumerate(stages, start=1):
         prefix = f"loading[{number}]"
         if not isinstance(raw, dict):
             errors.add(prefix, f"expected a table (hold = {{...}}, drive = {{...}}), got {toml_type(raw)}")
+            continue
+        if "dynamic" in raw:  # integrated in time (ncstab.dynamics), after the static stages
+            from ncstab.studies.dynamic_fields import read_dynamic_stage
+
+            if kind is not None:
+                dynamic = read_dynamic_stage(raw, number, len(stages), errors, references, system)
             continue
         stage, checkable = read_stage(raw, prefix, errors, references, forces)
         if not checkable:
@@ -178,8 +184,12 @@ def loading_section(
         clean.append(stage)
     if len(errors) > before:
         return None, references
+    if dynamic is not None and not clean:
+        from ncstab.studies.dynamic_fields import rest_stage
+
+        clean.append(rest_stage(forces))
     try:
-        return parse_programme(clean, dofs, forces, load), references
+        return dataclasses.replace(parse_programme(clean, dofs, forces, load), dynamic=dynamic), references
     except ProgrammeError as error:  # pragma: no cover - every stage passed alone
         errors.add("loading", programme_message(error))
         return None, references
@@ -321,6 +331,8 @@ def check_stages_do_something(
     """
     from ncstab.studies.stage_extent import stage_extents
 
+    if programme.dynamic is not None:  # a dynamic stage computes a motion, wherever the others leave the cases
+        return
     extents = stage_extents(programme.stages, parameters)
     linear = []
     for number, (stage, extent) in enumerate(zip(programme.stages, extents), 1):

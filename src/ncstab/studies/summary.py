@@ -109,7 +109,9 @@ def event_lines(dataset: Any, indent: str = "  ", law: int | None = None) -> lis
     from ncstab.paths.programme import EVENTS
 
     lines = []
-    for event in EVENTS:
+    extrema = sorted(str(name)[:-2] for name in dataset.variables  # [output] extrema: extremum_<name>
+                     if str(name).startswith("extremum_") and str(name).endswith("_s"))
+    for event in (*EVENTS, *extrema):
         if f"{event}_s" not in dataset or f"{event}_F" not in dataset:
             continue
         found = np.isfinite(_values(dataset, f"{event}_s", law))

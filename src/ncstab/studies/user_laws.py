@@ -1,4 +1,4 @@
-"""``[laws.<name>]`` tables of a study file: user laws by formula (ARCHITECTURE.md, "User laws").
+"""``[laws.<name>]`` tables of a study file: user laws by formula (docs/user-laws.md).
 
 ```toml
 [laws]

@@ -1,6 +1,6 @@
 """Systems as data: element arrays, dof maps, loads and masses, assembled numerically.
 
-ARCHITECTURE.md, "The model": a system is node coordinates, dof maps, element
+docs/models.md: a system is node coordinates, dof maps, element
 connectivity, loads, masses, gaps and fixed dofs -- arrays, not one sympy
 expression.  An :class:`AssembledSystem` holds
 

@@ -3,7 +3,7 @@
 Both have their own interactions (linear rotational springs of unit
 stiffness, :data:`ncstab.laws.spring.LINEAR_SPRING`) and a load parameter P.
 
-* :func:`column` -- Hencky's bar chain (ARCHITECTURE.md, "Systems"): n rigid
+* :func:`column` -- Hencky's bar chain (docs/models.md): n rigid
   links of length a, bar i at the angle theta_i = asin(w_i - w_{i-1}) from the
   axis (w_0 = w_n = 0), ends pinned, the top end free to move along the
   axis; springs C at the n - 1 internal joints with moment

@@ -1,6 +1,6 @@
 """A discrete system as a value: dofs, interaction families, loads, inertia, gaps.
 
-ARCHITECTURE.md, "The model".  A :class:`SystemDefinition` says, once and
+docs/models.md.  A :class:`SystemDefinition` says, once and
 symbolically (sympy expressions of the dof symbols and the system's
 parameters):
 

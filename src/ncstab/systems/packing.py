@@ -1,6 +1,6 @@
 """A granular packing: the packing file (NetCDF), its validation, and the system it defines.
 
-The packing file (ARCHITECTURE.md, "Packings"; docs/packings.md) has dimensions
+The packing file (docs/packings.md) has dimensions
 ``grain`` and ``contact``; lengths in units of the mean grain diameter d,
 forces in units of k_n d (seed Eq. 37 with 2R -> d), compression positive as N:
 

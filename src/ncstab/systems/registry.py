@@ -1,4 +1,4 @@
-"""The systems ncstab ships, by name (ARCHITECTURE.md, "Systems").
+"""The systems ncstab ships, by name (docs/models.md).
 
 Each entry says which structural *settings* build the system (``reduction``
 of the diamond, ``grains`` of a ring, ``links`` of a column, ``load`` of
