@@ -80,11 +80,16 @@ def test_branch_kinematics_equal_the_symbolic_definition(assembled, symbolic):
     np.testing.assert_allclose(assembled.contact_alpha0, expected, rtol=0, atol=1e-15)
 
 
-def test_column_springs_and_load_equal_the_symbolic_definition():
+@pytest.mark.parametrize("imperfection", [0.0, 0.07])
+def test_column_springs_and_load_equal_the_symbolic_definition(imperfection):
+    """Straight and imperfect (springs stress-free in imperfection sin(pi i / n)): the assembled
+    springs' q and J equal the symbolic column's to 1e-12."""
     n = 6
-    assembled, symbolic = assembled_column(n), column(n)
+    symbolic = column(n)
+    assembled = assembled_column(n).for_values({"imperfection": imperfection})
     u = 0.1 * np.random.default_rng(5).standard_normal(n - 1)
-    q_sym, J_sym = _symbolic_q_and_J(symbolic, u, {})
+    (spec,) = symbolic.parameters
+    q_sym, J_sym = _symbolic_q_and_J(symbolic, u, {spec.symbol: imperfection})
     q, J, _ = assembled.springs.kinematics(u)
     np.testing.assert_allclose(q, q_sym, rtol=0, atol=1e-12)
     dense = np.zeros_like(J_sym)

@@ -212,7 +212,8 @@ def _column_with(extra) -> object:
     w1 = shipped.dof_symbols[0]
     load = dataclasses.replace(shipped.load, vector=tuple(v + extra(w1) for v in shipped.load.vector))
     return SystemDefinition(name="exotic", title="a column with an exotic load", dofs=shipped.dofs,
-                            forces=shipped.forces, families=shipped.families, load=load, domain=shipped.domain)
+                            forces=shipped.forces, families=shipped.families, load=load, domain=shipped.domain,
+                            parameters=shipped.parameters)
 
 
 def test_a_function_outside_the_math_module_is_refused_naming_the_system_and_the_function():

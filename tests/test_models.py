@@ -383,7 +383,7 @@ def test_follow_takes_a_system_built_in_python():
     shipped = system_definition("column", (("links", 4),))
     user = SystemDefinition(
         name="my_column", title="a column built by hand", dofs=shipped.dofs, forces=shipped.forces,
-        families=shipped.families, load=shipped.load, domain=shipped.domain,
+        families=shipped.families, load=shipped.load, domain=shipped.domain, parameters=shipped.parameters,
     )
     a = follow(user, None, [{"drive": {"P": 0.9}}]).to_dataset()
     b = follow(SystemSpec("column", links=4), None, [{"drive": {"P": 0.9}}]).to_dataset()

@@ -72,11 +72,18 @@ def test_lammps_property_local_and_pair_local(tmp_path, known) -> None:
     packing, ids, types, force_on_b = known
     _dump_atoms(tmp_path / "atoms.dump", packing, ids, types)
     a, b = packing.contacts.T
-    # pairs listed j-i (the reverse order): the force on the first atom is then the force on b
-    rows = "\n".join(f"{ids[j]} {ids[i]} {f[0]:.17g} {f[1]:.17g} 0" for i, j, f in zip(a, b, force_on_b))
+    # pairs listed j-i (the reverse order): the force on the first atom is then the force on b;
+    # as LAMMPS's granular pair/local writes it: fx fy fz the normal part, p1 p2 p3 the tangential
+    branch = np.column_stack([packing.x[b] - packing.x[a], packing.y[b] - packing.y[a]])
+    n = branch / np.linalg.norm(branch, axis=1)[:, None]
+    normal = np.sum(force_on_b * n, axis=1)[:, None] * n
+    tangential = force_on_b - normal
+    rows = "\n".join(f"{ids[j]} {ids[i]} {f[0]:.17g} {f[1]:.17g} 0 {t[0]:.17g} {t[1]:.17g} 0"
+                     for i, j, f, t in zip(a, b, normal, tangential))
     (tmp_path / "pairs.dump").write_text(
         f"ITEM: TIMESTEP\n1000\nITEM: NUMBER OF ENTRIES\n{len(a)}\nITEM: BOX BOUNDS pp pp pp\n-1 1\n-1 1\n-1 1\n"
-        f"ITEM: ENTRIES c_ids[1] c_ids[2] c_pair[1] c_pair[2] c_pair[3]\n{rows}\n")
+        "ITEM: ENTRIES c_ids[1] c_ids[2] c_pair[1] c_pair[2] c_pair[3] c_pair[4] c_pair[5] c_pair[6]\n"
+        f"{rows}\n")
     read = read_lammps(tmp_path / "atoms.dump", tmp_path / "pairs.dump", columns=LAMMPS_PAIR_LOCAL, kn=KN,
                        fixed_ids=ids[packing.fixed])
     # the same contacts with a and b swapped: N and T are unchanged by the swap (docs/packings.md)

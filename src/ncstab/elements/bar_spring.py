@@ -40,25 +40,29 @@ class BarSprings:
         local dofs, ``(m, 2, L)``.
     weight
         Weight of every spring in the internal virtual work.
+    rest
+        Each spring's q where it is stress-free ``(m,)`` (a stress-free shape that is not
+        straight: an imperfect column), or None for 0.  J and H do not depend on it.
     """
 
     names: tuple[str, ...]
     dofs: np.ndarray
     rises: np.ndarray
     weight: float = 1.0
+    rest: np.ndarray | None = None
 
     @property
     def size(self) -> int:
         return len(self.names)
 
     def kinematics(self, u: np.ndarray, second: bool = True):
-        """q = theta_b - theta_a ``(m, 1)``, J ``(m, 1, L)``, H ``(m, 1, L, L)`` (or None)."""
+        """q = theta_b - theta_a - rest ``(m, 1)``, J ``(m, 1, L)``, H ``(m, 1, L, L)`` (or None)."""
         r = np.einsum("mkl,ml->mk", self.rises, u[self.dofs])
         cosine2 = 1.0 - r * r
         theta = np.arcsin(r)
         slope = 1.0 / np.sqrt(cosine2)
         sign = np.array([-1.0, 1.0])
-        q = (theta @ sign)[:, None]
+        q = (theta @ sign)[:, None] if self.rest is None else (theta @ sign - self.rest)[:, None]
         J = np.einsum("k,mk,mkl->ml", sign, slope, self.rises)[:, None, :]
         if not second:
             return q, J, None

@@ -112,7 +112,8 @@ def follow_assembled(model: "Model", programme: LoadingProgramme, grid: Any, val
                 if parameter.name not in case_values and parameter.default is not None:
                     case_values[parameter.name] = float(parameter.default)
             contact_law = law if definition.contacts is not None else None
-            run = CaseRun(definition, contact_law, case_values, options, model.secondary_contacts)
+            run = CaseRun(definition.for_values(case_values), contact_law, case_values, options,
+                          model.secondary_contacts)
             outcomes.append(follow_case(run, programme, case_values, definition.dofs, definition.forces,
                                         definition.load_parameter))
             if progress is not None:

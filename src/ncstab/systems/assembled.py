@@ -25,6 +25,8 @@ grains takes milliseconds.
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -102,6 +104,11 @@ class AssembledSystem:
         The axial dead load, or ``None``.
     masses
         Diagonal of M ``(n,)``, or ``None``.
+    system_parameters
+        The system's own parameters (:class:`~ncstab.laws.ParameterSpec`), set per case.
+    spring_rest
+        ``values -> (m,)`` the springs' stress-free q for a case's parameter values, or
+        ``None`` (stress-free straight); :meth:`for_values` applies it.
     """
 
     name: str
@@ -119,6 +126,17 @@ class AssembledSystem:
     settings: tuple[tuple[str, Any], ...] = ()
     reference: str = ""
     work_factor: float = 1.0
+    system_parameters: tuple = ()
+    spring_rest: Callable[[dict[str, float]], np.ndarray] | None = None
+
+    def for_values(self, values: dict[str, float]) -> AssembledSystem:
+        """The system of one case: its springs stress-free where its parameters say."""
+        if self.spring_rest is None or self.springs is None:
+            return self
+        rest = self.spring_rest(values)
+        if not np.any(rest):
+            return self
+        return dataclasses.replace(self, springs=dataclasses.replace(self.springs, rest=rest))
 
     def __post_init__(self) -> None:
         n = len(self.dofs)
@@ -154,7 +172,7 @@ class AssembledSystem:
 
     @property
     def parameters(self) -> tuple:
-        return ()
+        return self.system_parameters
 
     parameter_specs = parameters
 

@@ -18,6 +18,7 @@ them in the tests, K to 1e-12):
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -25,7 +26,7 @@ import numpy as np
 from ncstab.elements import BarSprings, BranchElements
 from ncstab.laws.spring import LINEAR_SPRING
 from ncstab.systems.assembled import AssembledSystem, AxialLoad, GrainPositions
-from ncstab.systems.bars import COLUMN_UNITS, COLUMN_REFERENCE
+from ncstab.systems.bars import COLUMN_REFERENCE, COLUMN_UNITS, IMPERFECTION_SPEC, imperfect_rises
 from ncstab.systems.granular import GRANULAR_UNITS, SEED
 
 __all__ = ["assembled_column", "assembled_diamond", "assembled_ring"]
@@ -141,4 +142,13 @@ def assembled_column(links: int) -> AssembledSystem:
         units=COLUMN_UNITS,
         settings=(("links", n),),
         reference=COLUMN_REFERENCE,
+        system_parameters=(IMPERFECTION_SPEC,),
+        spring_rest=functools.partial(_column_rest, imperfect_rises(n)),
     )
+
+
+def _column_rest(unit_rises: np.ndarray, values: dict[str, float]) -> np.ndarray:
+    """Spring j's stress-free rotation asin(e r_{j+1}) - asin(e r_j) in the imperfect shape
+    w0_i = e sin(pi i / n), e = ``values["imperfection"]`` (the derived column's, :func:`column`)."""
+    angles = np.arcsin(float(values.get("imperfection", 0.0)) * unit_rises)
+    return np.diff(angles)

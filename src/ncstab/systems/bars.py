@@ -11,7 +11,9 @@ stiffness, :data:`ncstab.laws.spring.LINEAR_SPRING`) and a load parameter P.
   P a sum(1 - cos theta_i).  Dofs: the lateral displacements w_1..w_{n-1} of
   the internal joints (units of a); P in units of C/a; forces (lateral, at
   the joints) in units of C/a.  Straight-path buckling loads:
-  P_k = (4 C/a) sin^2(k pi / 2n) (Hencky).
+  P_k = (4 C/a) sin^2(k pi / 2n) (Hencky).  Its parameter ``imperfection`` (default 0)
+  makes the springs stress-free at w0_i = imperfection sin(pi i / n) (the first mode):
+  a joint's rotation is measured from its angle in that shape.
 * :func:`ziegler` -- two rigid bars of length l (Ziegler 1952): absolute bar
   angles phi1, phi2 from the vertical; springs k at the base (moment
   k phi1) and at the middle joint (moment k (phi2 - phi1)); point masses
@@ -27,6 +29,7 @@ stiffness, :data:`ncstab.laws.spring.LINEAR_SPRING`) and a load parameter P.
 
 from __future__ import annotations
 
+import numpy as np
 import sympy as sp
 
 from ncstab.laws.definition import ParameterSpec
@@ -40,7 +43,7 @@ from ncstab.systems.definition import (
     dof_symbols,
 )
 
-__all__ = ["COLUMN_REFERENCE", "COLUMN_UNITS", "ZIEGLER_LOADS", "column", "ziegler"]
+__all__ = ["COLUMN_REFERENCE", "COLUMN_UNITS", "IMPERFECTION_SPEC", "ZIEGLER_LOADS", "column", "imperfect_rises", "ziegler"]
 
 #: The two loads of Ziegler's pendulum.
 ZIEGLER_LOADS = ("follower", "dead")
@@ -54,6 +57,23 @@ COLUMN_UNITS = SystemUnits(
     work_description="work of the external forces and of P, in units of C",
     force_unit="C/a",
 )
+#: A column's geometric imperfection: the amplitude of its stress-free shape.
+IMPERFECTION_SPEC = ParameterSpec(
+    "imperfection", sp.Symbol("imperfection"),
+    "amplitude / a of the stress-free shape w0_i = imperfection sin(pi i / n) (the first buckling mode)",
+    lower=-0.5, upper=0.5, default=0.0,
+)
+
+
+def imperfect_rises(links: int) -> np.ndarray:
+    """The rises of the bars of the stress-free shape per unit of imperfection,
+    sin(pi i / n) - sin(pi (i - 1) / n), i = 1 .. n (``(n,)``; exactly 0 at both ends' joints)."""
+    i = np.arange(1, links + 1)
+    rises = 2.0 * np.cos(np.pi * (2 * i - 1) / (2 * links)) * np.sin(np.pi / (2 * links))
+    rises[np.abs(rises) < 1e-15] = 0.0  # the middle bar of an odd column is level: exactly
+    return rises
+
+
 COLUMN_REFERENCE = "Hencky (1921), Eisenbau 11, 437-452; Challamel & Kocsis (2021), Int. J. Non-Linear Mech. 136, 103772"
 
 
@@ -66,11 +86,13 @@ def column(links: int) -> SystemDefinition:
     w = (sp.Integer(0), *dof_symbols(dofs), sp.Integer(0))
     rise = [w[i] - w[i - 1] for i in range(1, n + 1)]  # sin(theta_i) of each bar
     theta = [sp.asin(x) for x in rise]
+    # the stress-free shape: w0_i = imperfection * sin(pi i / n), the first buckling mode
+    rest = [sp.asin(IMPERFECTION_SPEC.symbol * float(r)) for r in imperfect_rises(n)]
     springs = InteractionFamily(
         name="springs",
         kind="spring",
         members=tuple(f"joint{j}" for j in range(1, n)),
-        variables=tuple((theta[j] - theta[j - 1],) for j in range(1, n)),
+        variables=tuple((theta[j] - theta[j - 1] - (rest[j] - rest[j - 1]),) for j in range(1, n)),
         law=LINEAR_SPRING,
     )
     shortening = sum(1 - sp.sqrt(1 - x**2) for x in rise)  # sum (1 - cos theta_i)
@@ -92,6 +114,7 @@ def column(links: int) -> SystemDefinition:
         units=COLUMN_UNITS,
         settings=(("links", n),),
         reference=COLUMN_REFERENCE,
+        parameters=(IMPERFECTION_SPEC,),
     )
 
 

@@ -26,7 +26,9 @@ by ``fixed_types`` (a LAMMPS atom type, e.g. wall grains) and/or ``fixed_ids``.
   ids, or ``a,b,fx,fy``: the force of a on b).
 
 The readers were tested on small files written from the formats' documentation
-(tests/test_packing_readers.py), not on output of the codes themselves.
+(tests/test_packing_readers.py), and the LAMMPS reader on a packing poured and settled
+by LAMMPS itself (tests/test_lammps_packing.py, tests/data/lammps_pour/); LIGGGHTS
+and YADE were not run.
 """
 
 from __future__ import annotations
@@ -44,9 +46,11 @@ __all__ = ["LAMMPS_PAIR_LOCAL", "LIGGGHTS_ID_FORCE", "packing_from_arrays", "rea
 
 #: ``compute pair/gran/local id force`` (LIGGGHTS): id1 id2 periodic-flag fx fy fz, force on id1.
 LIGGGHTS_ID_FORCE = {"id1": 0, "id2": 1, "fx": 3, "fy": 4}
-#: ``dump local c_ids[1] c_ids[2] c_pair[1] c_pair[2] c_pair[3]`` (LAMMPS property/local patom1 patom2 and
-#: pair/local fx fy fz): force on id1.
-LAMMPS_PAIR_LOCAL = {"id1": 0, "id2": 1, "fx": 2, "fy": 3}
+#: ``dump local c_ids[1] c_ids[2] c_pair[1] ... c_pair[6]`` (LAMMPS property/local patom1 patom2 and
+#: pair/local fx fy fz p1 p2 p3): the force on id1 is (fx + p1, fy + p2).  For the granular pair
+#: styles LAMMPS's fx, fy, fz are the normal force only; p1, p2, p3 the tangential force
+#: (measured on a packing poured by LAMMPS itself: tests/test_lammps_packing.py).
+LAMMPS_PAIR_LOCAL = {"id1": 0, "id2": 1, "fx": 2, "fy": 3, "tx": 5, "ty": 6}
 
 
 def read_dump(path: str | Path, item: str = "ATOMS", timestep: int | None = None) -> tuple[list[str], np.ndarray]:
@@ -164,8 +168,9 @@ def read_lammps(atoms: str | Path, pairs: str | Path | None = None, columns: Map
     pairs
         The ``dump local`` of the contacts, or None (contacts: overlapping pairs, forces 0).
     columns
-        Where id1, id2, fx, fy are in ``pairs`` (index or header name);
-        default :data:`LIGGGHTS_ID_FORCE`.  (fx, fy) is the force on id1.
+        Where id1, id2, fx, fy (and optionally tx, ty, a tangential part added to them) are
+        in ``pairs`` (index or header name); default :data:`LIGGGHTS_ID_FORCE`.  (fx, fy)
+        (+ (tx, ty)) is the force on id1.
     kn
         The DEM's normal stiffness (units of force per length).
     fixed_types, fixed_ids
@@ -188,6 +193,8 @@ def read_lammps(atoms: str | Path, pairs: str | Path | None = None, columns: Map
     spec = dict(LIGGGHTS_ID_FORCE if columns is None else columns)
     i1, i2 = (_column(local_names, local, spec[k], pairs) for k in ("id1", "id2"))
     on_first = np.column_stack([_column(local_names, local, spec[k], pairs) for k in ("fx", "fy")])
+    if "tx" in spec:  # a tangential part given apart (LAMMPS's granular pair/local: p1, p2)
+        on_first = on_first + np.column_stack([_column(local_names, local, spec[k], pairs) for k in ("tx", "ty")])
     return packing_from_arrays(ids, x, y, radius, held, np.column_stack([i1, i2]), -on_first, kn, str(pairs))
 
 

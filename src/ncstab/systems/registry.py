@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 from ncstab.laws.definition import ALPHA0_SPEC, ParameterSpec
-from ncstab.systems.bars import ZIEGLER_LOADS, ZIEGLER_PARAMETERS, column, ziegler
+from ncstab.systems.bars import IMPERFECTION_SPEC, ZIEGLER_LOADS, ZIEGLER_PARAMETERS, column, ziegler
 from ncstab.systems.definition import SystemDefinition
 from ncstab.systems.granular import axes_diamond, ring, symmetric_diamond
 
@@ -186,7 +186,7 @@ SYSTEMS: dict[str, SystemKind] = {
         name="column",
         title="Hencky's column: n rigid links, rotational springs, axial dead load P",
         settings=(Setting("links", "the number of rigid links, n >= 2", None, _whole_at_least(2, MOST_DOFS + 1)),),
-        parameter_specs=(),
+        parameter_specs=(IMPERFECTION_SPEC,),
         shorthands=(),
         granular=False,
         own_laws=True,
