@@ -102,6 +102,7 @@ __all__ = [
     "Chunk",
     "ResumeError",
     "archive_layout",
+    "chunk_path",
     "default_chunk_cases",
     "parts_directory",
     "plan_chunks",
@@ -127,12 +128,18 @@ def run_chunk(study: Study, law: str, start: int, stop: int) -> "xr.Dataset":
         these cases: dimension ``law`` of size 1, and ``case`` (flat indices
         ``start:stop``) in place of the swept parameters.
     """
+    return study_dataset(study, chunk_path(study, law, start, stop))
+
+
+def chunk_path(study: Study, law: str | None, start: int, stop: int) -> PathResult:
+    """The followed paths of the cases ``start:stop`` of one law (``None``: a system with its own
+    laws) (grid: a :class:`CaseRange`)."""
     grid = CaseRange(ParameterGrid.from_mapping(study.parameters), start, stop)
     values = grid.case_values()
     model = study.model(law)
     batch = case_batch(model.laws[0], model, values, grid.size)
     result = follow_cases(batch, study.programme, values, study.options, model.secondary_contacts)
-    path = PathResult(
+    return PathResult(
         model=model,
         grid=grid,
         programme=study.programme,
@@ -140,7 +147,6 @@ def run_chunk(study: Study, law: str, start: int, stop: int) -> "xr.Dataset":
         results=(result,),
         study_text=study.text,
     )
-    return study_dataset(study, path)
 
 
 def encode_study_chunk(study: Study, chunk: Chunk, layout: BlockLayout, dataset: "xr.Dataset") -> EncodedChunk:

@@ -92,9 +92,10 @@ def study_dataset(study: Study, path: "PathResult") -> xr.Dataset:
     )
     dataset = select_variables(dataset, archive_selection(study))
     if path.programme.dynamic is not None:  # the motion of the dynamic stage: always kept
-        from ncstab.dynamics import follow_motions, motion_dataset
+        from ncstab.dynamics import motion_dataset
+        from ncstab.studies.motions_on_cores import study_motions
 
-        dataset = dataset.merge(motion_dataset(path, path.programme.dynamic, follow_motions(path, path.programme.dynamic)))
+        dataset = dataset.merge(motion_dataset(path, path.programme.dynamic, study_motions(study, path)))
     return with_load_level(normalise_dataset(dataset))  # ds.load is xarray's method: ds.load_level too
 
 
