@@ -19,7 +19,7 @@ import numpy as np
 import scipy.sparse as sparse
 import scipy.sparse.linalg as splinalg
 
-__all__ = ["DENSE_LIMIT", "critical_eigenvalue", "determinant", "lu_determinant", "hill_eigenvalue", "negative_pivots",
+__all__ = ["DENSE_LIMIT", "critical_eigenvalue", "determinant", "hill_eigenvalue", "is_symmetric", "lu_determinant", "negative_pivots",
            "permutation_sign", "start_vector"]
 
 #: Up to this size the indicators use dense linear algebra.
@@ -65,7 +65,7 @@ def lu_determinant(lu) -> tuple[float, float]:
 def critical_eigenvalue(K) -> tuple[float, np.ndarray]:
     """The real eigenvalue of K nearest zero and its (real, unit) right eigenvector."""
     n = K.shape[0]
-    symmetric = _is_symmetric(K)
+    symmetric = is_symmetric(K)
     if not sparse.issparse(K) or n <= DENSE_LIMIT:
         A = K.toarray() if sparse.issparse(K) else np.asarray(K)
         if symmetric:
@@ -91,7 +91,8 @@ def start_vector(n: int) -> np.ndarray:
     return np.random.default_rng(20221).standard_normal(n)
 
 
-def _is_symmetric(K) -> bool:
+def is_symmetric(K) -> bool:
+    """K = K^T to 1e-13 of max |K_ij| (dense or sparse)."""
     difference = K - K.T
     size = abs(K).max() if sparse.issparse(K) else np.abs(K).max()
     largest = abs(difference).max() if sparse.issparse(difference) else np.abs(difference).max()

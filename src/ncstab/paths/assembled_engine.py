@@ -65,7 +65,7 @@ class Point:
     tangent: np.ndarray | None = None
     indicators: dict[str, float] = field(default_factory=dict)
     #: The indicators as computed, before a sign within rounding was replaced by the last
-    #: certain one (:func:`ncstab.paths.assembled_path._steady`); None: the same as ``indicators``.
+    #: certain one (:func:`ncstab.paths.assembled_events._steady`); None: the same as ``indicators``.
     raw: dict[str, float] | None = None
 
 

@@ -19,7 +19,7 @@ buckling load would not be found.  Two things are computed without that cancella
 
 Then sign det K = sign(rest) sign(lambda).  On such a path dR/dP = 0 and the tangent is
 (0, t_P), so the bordered determinant is det K_SS t_P.  Used only where Hill's eigenvalue is
-within rounding of zero (:data:`ncstab.paths.assembled_path.EIGENVALUE_NOISE`) and K_SS is
+within rounding of zero (:data:`ncstab.paths.assembled_events.EIGENVALUE_NOISE`) and K_SS is
 symmetric; the indicators say so with ``exact = 1.0``.
 """
 
@@ -30,7 +30,7 @@ from scipy import sparse
 from scipy.sparse import linalg as splinalg
 
 from ncstab.operators.assembly import energy_forms
-from ncstab.operators.sparse_indicators import critical_eigenvalue, lu_determinant
+from ncstab.operators.sparse_indicators import critical_eigenvalue, is_symmetric, lu_determinant
 
 __all__ = ["is_trivial", "trivial_path_signs"]
 
@@ -40,12 +40,6 @@ def is_trivial(stepper, p) -> bool:
     if not stepper.control.load_stage or np.any(p.u):
         return False
     return not np.any(p.state.dR_dload)
-
-
-def _symmetric(K) -> bool:
-    difference = abs(K - K.T)
-    largest = difference.max() if difference.shape[0] else 0.0
-    return float(largest) <= 1e-14 * max(float(abs(K).max()), 1e-300)
 
 
 def _rest_sign(K_SS, phi: np.ndarray, c: float) -> float:
@@ -70,7 +64,7 @@ def trivial_path_signs(stepper, p, out: dict, noise: float) -> None:
     run, control, m = stepper.run, stepper.control, stepper.m
     K_SS, _ = run.blocks(control, p.state, stepper.lam(p.y))
     scale = float(abs(K_SS).max()) if K_SS.shape[0] else 0.0
-    if scale == 0.0 or abs(out["hill"]) > noise * scale or not _symmetric(K_SS):
+    if scale == 0.0 or abs(out["hill"]) > noise * scale or not is_symmetric(K_SS):
         return
     _, phi = critical_eigenvalue(K_SS)
     vector = np.zeros(run.n)
