@@ -225,6 +225,17 @@ def _scale_python(ns: dict[str, Any], out: str) -> None:
     assert Path(ns["archive"]).samefile("results/big.nc")  # the archive's path
 
 
+def _packings_console(ns: dict[str, Any], out: str) -> None:
+    # the lines that the page shows after ncstab analyse ... --directions directions.csv --cone-plane push,shear
+    assert "4 directions: d2W from 0.688871 to 4.408, 0 negative" in out, out
+    assert "unstable cone in the plane of directions push,shear: none" in out, out
+
+
+def _packings_cone(ns: dict[str, Any], out: str) -> None:
+    assert out.splitlines() == ["hill = -0.000422412, unstable cone from 2.895114 to 3.388071 rad",
+                                "[2.63  3.07  0.668 4.224] 0.0"], out
+
+
 #: Checks of what a block printed (``out``) or left in its namespace or working
 #: directory: (page, text the block holds) -> check(namespace, printed).
 CHECKS: dict[tuple[str, str], Callable[[dict[str, Any], str], None]] = {
@@ -236,6 +247,8 @@ CHECKS: dict[tuple[str, str], Callable[[dict[str, Any], str], None]] = {
     ("docs/study-files.md", "-o out.nc"): _study_files_console,
     ("docs/when-things-go-wrong.md", "except ArchiveError"): _nothing_printed,
     ("docs/scale.md", "run_study_chunked(load_study"): _scale_python,
+    ("docs/packings.md", "--cone-plane push,shear -o"): _packings_console,
+    ("docs/packings.md", "heavier = packing.with_forces"): _packings_cone,
 }
 
 

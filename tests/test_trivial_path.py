@@ -10,6 +10,8 @@ det K would be carried over the whole path and the buckling load never found.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from scipy import sparse
@@ -81,3 +83,39 @@ def test_a_stage_ends_at_its_target_when_newton_at_the_target_fails(monkeypatch)
     assert outcome.status == "finished"
     last = outcome.points[-1].load
     assert last == pytest.approx(target, rel=1e-9)  # the bisection to event_tol of a step (measured 5e-13)
+
+
+def _rounded_critical_load(offset: float):
+    """``refine_critical_load`` whose lambda carries a rounding of ``offset`` (relative)."""
+    original = assembled_path.refine_critical_load
+
+    def rounded(stepper, e):
+        refined = original(stepper, e)
+        y = refined.y.copy()
+        y[stepper.m] *= 1 + offset
+        return dataclasses.replace(refined, y=y, load=refined.load * (1 + offset))
+
+    return rounded
+
+
+def test_the_rounding_of_a_switched_bifurcation_is_not_a_turning_point(monkeypatch):
+    """A column of 5,001 links located P1 with a rounding of 1.4e-10 relative against the branch's
+    Newton lambda, and its buckled branch rises by 1e-18: the first secant off the switch was
+    negative by rounding, the branch's true rise later positive, and a turning point was reported
+    at the bifurcation.  The same rounding is put on a 40-link column's located load here (1e-8 of
+    P1, 100 times SECANT_NOISE, much more than the branch's first rise): no turning point, the
+    bifurcation located to the offset put on it."""
+    monkeypatch.setattr(assembled_path, "refine_critical_load", _rounded_critical_load(1e-8))
+    outcome = _column_events()
+    assert outcome.status == "finished"
+    assert abs(outcome.events["bifurcation"]["point"].load / P1 - 1) < 2e-8
+    assert "turning_point" not in outcome.events
+    assert np.abs(outcome.points[-1].u).max() > 1.0
+
+
+def test_without_the_switch_mark_the_rounding_reads_as_a_turning_point(monkeypatch):
+    """The run above with the first secant off the switch read as any other: the turning point
+    that the 5,001-link column reported (so the test above can fail)."""
+    monkeypatch.setattr(assembled_path, "refine_critical_load", _rounded_critical_load(1e-8))
+    monkeypatch.setattr(assembled_events, "SWITCHED", "never set")
+    assert "turning_point" in _column_events().events

@@ -2,8 +2,12 @@
 
 :func:`analyse` reads and validates the packing (:mod:`ncstab.systems.packing`:
 a malformed one is an :class:`~ncstab.systems.packing.PackingError`, exit code
-2, nothing written), assembles K with the law
-(:mod:`ncstab.operators.packing_analysis`) and returns the archive as an
+2, nothing written) and the given directions
+(:mod:`ncstab.operators.packing_directions`: a malformed one is a
+``DirectionsError``, exit code 2), assembles K with the law
+(:mod:`ncstab.operators.packing_analysis`), adds the second-order work of the
+directions and the exact unstable cones (the plane of the two softest modes of
+K_sym, and the planes of given pairs of directions) and returns the archive as an
 ``xarray.Dataset`` (written to ``output`` when given: to a temporary file
 beside it, then renamed, so that a failed write leaves nothing).  Every variable
 has ``units``, ``long_name`` and ``description``; docs/packings.md lists them.
@@ -39,7 +43,8 @@ def _law(name: str):
 
 
 def analyse(packing: Any, law: str | Any = "mcnamara", gamma: float = 1.0, modes: int = 6,
-            output: str | os.PathLike[str] | None = None, loops: bool = False):
+            output: str | os.PathLike[str] | None = None, loops: bool = False, directions: Any = None,
+            cone_planes: Any = ()):
     """Analyse a packing: the archive of ``ncstab analyse`` as an ``xarray.Dataset``.
 
     Parameters
@@ -59,10 +64,31 @@ def analyse(packing: Any, law: str | Any = "mcnamara", gamma: float = 1.0, modes
         Also the grain loops, by increasing Hill eigenvalue as rings
         (:mod:`ncstab.systems.mesostructures`): ``loop_hill``, ``loop_length``,
         ``loop_grains`` along ``loop``.
+    directions
+        Directions over the free dofs whose second-order work d^T K d / d^T d
+        is wanted (``direction_d2W``): a file's path (CSV with a header of dof
+        names, or ``.npy``), an array ``(p, n)`` or ``(n,)`` in the order of
+        ``Packing.dof_names()``, or a mapping {name: vector}
+        (:mod:`ncstab.operators.packing_directions`).
+    cone_planes
+        Pairs of directions (names or 0-based rows, ``"a,b"`` or ``(a, b)``):
+        the exact unstable cone in each pair's plane, after the plane of the
+        two softest modes of K_sym, which is always given (``cone_width``,
+        ``cone_lower``, ``cone_upper`` along ``plane``).
+
+    Raises
+    ------
+    InvalidInputError
+        A malformed packing, law, option or direction (exit code 2), before
+        anything is computed or written.
     """
+    from dataclasses import replace
+
     import numpy as np
 
     from ncstab.operators.packing_analysis import analyse_packing
+    from ncstab.operators.packing_directions import cone_planes as cone_planes_of
+    from ncstab.operators.packing_directions import directions_from, resolve_planes
     from ncstab.studies.errors import InvalidInputError
     from ncstab.systems.packing import Packing, read_packing
 
@@ -72,8 +98,14 @@ def analyse(packing: Any, law: str | Any = "mcnamara", gamma: float = 1.0, modes
         raise InvalidInputError(f"--modes: {modes!r} is negative")
     definition = _law(law) if isinstance(law, str) else law
     value = packing if isinstance(packing, Packing) else read_packing(packing)
-    result = analyse_packing(value, definition, float(gamma), int(modes))
+    given = None if directions is None else directions_from(directions, value)
+    planes = resolve_planes([cone_planes] if isinstance(cone_planes, str) else cone_planes or (), given)
+    result = analyse_packing(value, definition, float(gamma), max(int(modes), 2))  # the cone's plane: 2 modes
+    cones = cone_planes_of(result.tangent.K, result.modes[:2], planes)
+    result = replace(result, mode_values=result.mode_values[:int(modes)], modes=result.modes[:int(modes)],
+                     participation=result.participation[:int(modes)])
     dataset = analysis_dataset(value, result, definition.name, float(gamma))
+    dataset = dataset.merge(direction_variables(value, result, given, cones))
     if loops:
         dataset = dataset.merge(loop_variables(value, result))
     if output is not None:
@@ -157,6 +189,57 @@ def analysis_dataset(packing, result, law_name: str, gamma: float):
     return dataset
 
 
+def direction_variables(packing, result, directions, cones):
+    """The second-order work of the given directions (none: no ``direction``) and the unstable cones, per plane."""
+    import numpy as np
+    import xarray as xr
+
+    from ncstab.operators.packing_analysis import mode_components
+    from ncstab.operators.packing_directions import direction_work
+
+    stiffness = "k_n (per mean grain diameter for x, y; times it for theta)"
+    per_dof = "1 (x, y: mean grain diameter; theta: rad)"
+    root = "exact root of d(t)^T K d(t) = 0, d(t) = cos t e1 + sin t e2"
+    data: dict[str, Any] = {
+        "cone_width": (("plane",), np.array([c.width for c in cones]), _attrs(
+            "rad", "width of the unstable cone in the plane",
+            "total angle t over the full circle of directions d(t) = cos t e1 + sin t e2 of the plane (cone_basis) "
+            "where d^T K d < 0: 0 where the projected form is positive definite (Hill's condition holds in the "
+            "plane), 2 pi where it is negative definite")),
+        "cone_lower": (("plane",), np.array([c.lower for c in cones]), _attrs(
+            "rad", "lower bound of the unstable cone in the plane",
+            f"{root}, angle from e1 towards e2, in [0, pi), bounding one of the two opposite unstable cones (the "
+            "other is shifted by pi); NaN where there is no cone or where every direction of the plane is unstable")),
+        "cone_upper": (("plane",), np.array([c.upper for c in cones]), _attrs(
+            "rad", "upper bound of the unstable cone in the plane",
+            f"{root}: cone_lower + cone_width/2; NaN where there is no cone or every direction is unstable")),
+        "cone_hill": (("plane",), np.array([c.hill for c in cones]), _attrs(
+            stiffness, "Hill's eigenvalue in the plane",
+            "min over t of d(t)^T K d(t): the smallest eigenvalue of the symmetric part of cone_form")),
+        "cone_form": (("plane", "basis", "basis_column"), np.stack([c.form for c in cones]), _attrs(
+            stiffness, "K projected on the plane", "B = E^T K E, E = [e1 e2] (cone_basis): d(t)^T K d(t) = "
+            "B11 cos^2 t + (B12 + B21) cos t sin t + B22 sin^2 t")),
+        "cone_basis": (("plane", "basis", "grain", "component"),
+                       np.stack([mode_components(packing, c.basis) for c in cones]), _attrs(
+            per_dof, "orthonormal basis e1, e2 of the plane",
+            "per grain and component (held grains 0); plane 'softest modes': the two smallest eigenvectors of "
+            "K_sym; plane 'a,b': Gram-Schmidt of the directions a and b (e1 along a)")),
+    }
+    coords: dict[str, Any] = {"plane": ("plane", np.array([c.label for c in cones]), _attrs(
+        "1", "plane of directions", "'softest modes', or the names of the two given directions spanning it"))}
+    if directions is not None:
+        data["direction_d2W"] = (("direction",), direction_work(result.tangent.K, directions), _attrs(
+            stiffness, "second-order work of the direction",
+            "d^T K d / d^T d over the free dofs (= d^T K_sym d / d^T d): negative where Hill's condition fails "
+            "in that direction", source=directions.source))
+        data["direction_vector"] = (("direction", "grain", "component"),
+                                    mode_components(packing, directions.vectors), _attrs(
+            per_dof, "the given direction", "as given (not normalised), per grain and component (held grains 0)"))
+        coords["direction"] = ("direction", np.array(directions.names), _attrs(
+            "1", "direction name", "the name column of the directions file, else the 0-based row"))
+    return xr.Dataset({name: (dims, value, attrs) for name, (dims, value, attrs) in data.items()}, coords=coords)
+
+
 def loop_variables(packing, result):
     """The grain loops as archive variables, the loops that lose Hill's condition first coming first."""
     import numpy as np
@@ -205,7 +288,8 @@ def command_analyse(args: argparse.Namespace) -> int:
 
     output = Path(args.output) if args.output else default_analysis_path(args.packing)
     try:
-        dataset = analyse(args.packing, args.law, args.gamma, args.modes, output=output, loops=args.loops)
+        dataset = analyse(args.packing, args.law, args.gamma, args.modes, output=output, loops=args.loops,
+                          directions=args.directions, cone_planes=args.cone_plane or ())
     except np.linalg.LinAlgError as error:
         from ncstab.studies.errors import RunError
 
@@ -219,6 +303,16 @@ def command_analyse(args: argparse.Namespace) -> int:
         raise
     print(f"{output}: hill = {float(dataset.hill):.6g}, negative eigenvalues = {int(dataset.negative_eigenvalues)}, "
           f"zero eigenvalues = {int(dataset.zero_eigenvalues)}, sign det K = {int(dataset.det_K_sign)}")
+    if "direction" in dataset.sizes:
+        work = dataset.direction_d2W.values
+        print(f"{len(work)} directions: d2W from {work.min():.6g} to {work.max():.6g}, "
+              f"{int((work < 0).sum())} negative")
+    for k, label in enumerate(dataset.plane.values):
+        width, lower, upper = (float(dataset[name][k]) for name in ("cone_width", "cone_lower", "cone_upper"))
+        cone = (f"width {width:.6g} rad, from {lower:.6g} to {upper:.6g} rad" if np.isfinite(lower) else
+                "every direction" if width > 0 else "none: Hill's condition holds in the plane")
+        plane = "the two softest modes" if label == "softest modes" else f"directions {label}"
+        print(f"unstable cone in the plane of {plane}: {cone}")
     if args.loops and dataset.sizes.get("loop", 0):
         lost = int((dataset.loop_hill < 0).sum())
         print(f"{dataset.sizes['loop']} grain loops, {lost} without Hill's condition; lowest loop Hill eigenvalue "
@@ -233,7 +327,8 @@ def add_analyse_parser(sub, parents: list) -> None:
         help="analyse a granular packing: K, Hill's eigenvalue, inertia, modes (docs/packings.md)",
         description="Assemble K of a packing file (NetCDF: grains, contacts, forces) with a contact law and "
         "write Hill's eigenvalue, the inertia of K_sym, the sign of det K, the smallest modes with each "
-        "grain's participation, and K itself. Exit code 2: invalid packing or option, nothing written; "
+        "grain's participation, K itself, the exact unstable cone in the plane of the two softest modes and the "
+        "second-order work of given directions. Exit code 2: invalid packing or option, nothing written; "
         "3: the analysis or the write could not complete.")
     parser.add_argument("packing", metavar="PACKING.nc", help="the packing file")
     parser.add_argument("--law", required=True, metavar="NAME", help="a contact law (ncstab laws lists them)")
@@ -242,6 +337,13 @@ def add_analyse_parser(sub, parents: list) -> None:
                         help="how many of the smallest eigenpairs of K_sym to keep (default 6)")
     parser.add_argument("--loops", action="store_true",
                         help="also the grain loops with their own Hill eigenvalue as rings, lowest first")
+    parser.add_argument("--directions", metavar="FILE",
+                        help="directions whose second-order work d^T K d / d^T d is wanted: a CSV file with a "
+                        "header of dof names (x<i>,y<i>,theta<i>; optional name column; unnamed dofs 0), one "
+                        "direction a line, or a .npy array of rows over every free dof")
+    parser.add_argument("--cone-plane", action="append", metavar="A,B",
+                        help="also the exact unstable cone in the plane of two --directions (names or 0-based rows); "
+                        "repeatable (the plane of the two softest modes of K_sym is always given)")
     parser.add_argument("-o", "--output", metavar="OUT.nc",
                         help="archive path (default results/<packing stem>_analysis.nc)")
     parser.set_defaults(handler=command_analyse)

@@ -53,7 +53,8 @@ def _programme(model, programme) -> LoadingProgramme:
     definition = model.definition
     if isinstance(programme, LoadingProgramme):
         return programme
-    return parse_programme(programme, definition.dofs, definition.forces, definition.load_parameter)
+    return parse_programme(programme, definition.dofs, definition.forces, definition.load_parameter,
+                           getattr(definition, "hold_other_forces", False))
 
 
 def check_boundary(model, programme: LoadingProgramme, parameters: Mapping[str, Any], event: str, parameter: str, start: float, stop: float) -> None:

@@ -183,5 +183,8 @@ class MotionEquations:
 
     def kinetic_energy(self, u: np.ndarray, velocity: np.ndarray, internal: np.ndarray) -> float:
         """w u'^T M(u) u' / 2 at one state."""
-        mass = self.mass(self.evaluate(u, internal))
-        return 0.5 * self.work_factor * float(velocity @ mass @ velocity)
+        return self.kinetic_energy_of_row(self.evaluate(u, internal), velocity)
+
+    def kinetic_energy_of_row(self, row: np.ndarray, velocity: np.ndarray) -> float:
+        """w u'^T M(u) u' / 2 with M(u) from the kernel's row at u."""
+        return 0.5 * self.work_factor * float(velocity @ self.mass(row) @ velocity)

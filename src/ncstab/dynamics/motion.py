@@ -8,7 +8,10 @@ times it covers and a motion that leaves the model's admissible domain (a
 contact length through zero, a bar at right angles) stops there with what it
 has: the right-hand side is NaN outside the domain, so the solver cannot step
 across it and ends with a step-size failure at its edge, recorded as
-``stopped:left_domain``.
+``stopped:left_domain``.  The events of a motion (a secondary contact closing,
+a kinetic-energy threshold) are located after each accepted step on its dense
+output (:mod:`ncstab.dynamics.motion_events`); one the stage stops at ends the
+motion there (``stopped:<event>``).
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ import numpy as np
 from scipy.integrate import DOP853, OdeSolution, Radau
 
 from ncstab.dynamics.equations import MotionEquations
+from ncstab.dynamics.motion_events import EventWatch, MotionEvent
 
 __all__ = ["MAX_STEPS", "Motion", "integrate_motion"]
 
@@ -44,12 +48,16 @@ class Motion:
         ``(S,)``: w u'^T M u' / 2 and the works of Eq. (5) of
         :mod:`ncstab.dynamics.equations` since the stage began.
     status, message
-        ``finished``, ``stopped:left_domain`` or ``failed:<reason>``, and what happened.
+        ``finished``, ``stopped:left_domain``, ``stopped:<event>`` (an event the
+        stage stops at) or ``failed:<reason>``, and what happened.
     steps, evaluations
         Accepted steps and right-hand-side evaluations.
     solution
         The dense output over the whole motion (:class:`scipy.integrate.OdeSolution`
         of the state ``[u_f, u_f', z, W_ext, W_int, W_diss]``), or ``None``.
+    events
+        The located events by name (:class:`~ncstab.dynamics.motion_events.MotionEvent`;
+        an event the motion never met is absent).
     """
 
     time: np.ndarray
@@ -65,6 +73,7 @@ class Motion:
     steps: int = 0
     evaluations: int = 0
     solution: OdeSolution | None = field(default=None, repr=False)
+    events: dict[str, MotionEvent] = field(default_factory=dict)
 
     @property
     def energy_balance(self) -> np.ndarray:
@@ -88,6 +97,7 @@ def integrate_motion(
     rtol: float = 1e-11,
     scale: float = 1.0,
     keep_solution: bool = False,
+    watch: EventWatch | None = None,
 ) -> Motion:
     """Integrate Eq. (2), (4), (5) of :mod:`ncstab.dynamics.equations` from rest at the start.
 
@@ -106,6 +116,9 @@ def integrate_motion(
         are ``rtol * scale`` (``rtol * scale**2`` for the works).
     keep_solution
         Keep the dense output (:attr:`Motion.solution`) of the whole motion.
+    watch
+        The motion's events (:func:`~ncstab.dynamics.motion_events.event_watch`),
+        located after each accepted step; ``None``: none.
 
     Returns
     -------
@@ -121,6 +134,8 @@ def integrate_motion(
     stored, steps = 1, 0
     knots, interpolants = [0.0], []
     status, message = "finished", f"integrated to t = {duration:g}"
+    if watch is not None:
+        watch.start(y0)
     while solver.status == "running":
         failure = solver.step()
         if solver.status == "failed":
@@ -135,10 +150,18 @@ def integrate_motion(
         if keep_solution:
             knots.append(solver.t)
             interpolants.append(interpolant)
-        end = np.searchsorted(times, solver.t, side="right")
+        stop = None
+        if watch is not None:
+            stop = watch.first_stop(watch.check_step(solver.t_old, solver.t, solver.y, interpolant))
+        reached = solver.t if stop is None else stop.time
+        end = np.searchsorted(times, reached, side="right")
         if end > stored:
             states[stored:end] = interpolant(times[stored:end]).T
             stored = end
+        if stop is not None:
+            status = f"stopped:{stop.name}"
+            message = _stop_message(stop, watch)
+            break
         if steps >= MAX_STEPS and solver.status == "running":
             status, message = "failed:max_steps", f"more than {MAX_STEPS:,} steps before t = {duration:g}"
             break
@@ -163,4 +186,12 @@ def integrate_motion(
         steps=steps,
         evaluations=equations.evaluations,
         solution=solution,
+        events={} if watch is None else dict(watch.located),
     )
+
+
+def _stop_message(event: MotionEvent, watch: EventWatch) -> str:
+    """What stopped the motion, in words."""
+    if event.name == "contact_closing":
+        return f"the secondary contact {event.gap} closed at t = {event.time:.10g} (stop_at)"
+    return f"the kinetic energy reached {watch.threshold:g} at t = {event.time:.10g} (stop_at)"

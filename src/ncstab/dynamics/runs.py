@@ -5,8 +5,9 @@
 starts every case's motion where its path ended -- displacements, forces, load
 parameter and internal variables of its last stored state -- and integrates it
 (:func:`~ncstab.dynamics.motion.integrate_motion`).  :func:`motion_dataset`
-labels the motions as the Dataset's ``time`` variables (docs/dynamics-after-loss.md).  A case whose path failed gets no motion (NaN, status
-``not_run``).
+labels the motions as the Dataset's ``time`` variables and their located events as
+``motion_<event>_time``, ``motion_<event>_u``... (docs/dynamics-after-loss.md).  A case
+whose path failed gets no motion (NaN, status ``not_run``).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import numpy as np
 
 from ncstab.dynamics.equations import MotionEquations
 from ncstab.dynamics.motion import Motion, integrate_motion
+from ncstab.dynamics.motion_events import event_watch
 from ncstab.dynamics.stage import DynamicStage
 from ncstab.paths.programme import CURRENT
 
@@ -25,7 +27,7 @@ if TYPE_CHECKING:  # pragma: no cover
 
     from ncstab.paths.result import PathResult
 
-__all__ = ["MOTION_VARIABLES", "follow_motions", "motion_dataset", "motion_equations"]
+__all__ = ["MOTION_VARIABLES", "follow_motions", "motion_dataset", "motion_equations", "motion_event_variables"]
 
 #: Status of a case whose path failed before its dynamic stage.
 NOT_RUN = "not_run"
@@ -54,7 +56,7 @@ def motion_variables(definition: Any) -> dict[str, tuple[str, str, str]]:
         "external_work": ("1", "work of the controls and loads", f"int w (F + lambda Q_ext(u)) . du since the stage began (held forces and the load parameter's loads, followers included; held displacements do none), in units of {energy}"),
         "internal_work": ("1", "work of the interactions", f"int w R_int(u, z) . du since the stage began (the interactions' generalized forces; not a function of u alone for a hypoelastic law: Green's paradox), in units of {energy}"),
         "dissipated_work": ("1", "work of the dashpots", f"int w u'^T C u' dt since the stage began (>= 0), in units of {energy}; kinetic_energy = external_work - internal_work - dissipated_work at every time"),
-        "motion_status": ("", "status of the motion", "finished, stopped:left_domain (the motion left the admissible domain; later times NaN), failed:<reason>, or not_run (the path before it failed)"),
+        "motion_status": ("", "status of the motion", "finished, stopped:left_domain (the motion left the admissible domain; later times NaN), stopped:contact_closing or stopped:kinetic_energy (the motion ended at an event the stage's stop_at names; later times NaN), failed:<reason>, or not_run (the path before it failed)"),
         "motion_message": ("", "what happened to the motion", "in words"),
         "motion_steps": ("1", "accepted integrator steps of the motion", "accepted steps of the adaptive Runge-Kutta integrator (scipy.integrate DOP853 or Radau)"),
     }
@@ -135,9 +137,10 @@ def follow_motions(path: PathResult, stage: DynamicStage, keep_solution: bool = 
                 per_case.append(None)
                 continue
             equations, internal = motion_equations(batch, stage, end, values, case)
+            watch = event_watch(equations, stage.kinetic_energy_threshold, stage.stop_at)
             per_case.append(
                 integrate_motion(equations, internal, stage.duration, stage.samples, stage.method, stage.rtol,
-                                 scale, keep_solution)
+                                 scale, keep_solution, watch)
             )
         motions.append(per_case)
     return motions
@@ -179,6 +182,8 @@ def motion_dataset(path: PathResult, stage: DynamicStage, motions: list[list[Mot
         "motion_message": (sweep_dims, message.astype(str).reshape(shape)),
         "motion_steps": (sweep_dims, steps.reshape(shape)),
     }
+    attributes.update(motion_event_variables(definition, stage))
+    data.update(_event_data(definition, stage, flat, shape, sweep_dims))
     dataset = xr.Dataset(
         {name: xr.Variable(dims, values, dict(zip(("units", "long_name", "description"), attributes[name])))
          for name, (dims, values) in data.items()}
@@ -186,3 +191,58 @@ def motion_dataset(path: PathResult, stage: DynamicStage, motions: list[list[Mot
     time = np.linspace(0.0, stage.duration, samples)
     dataset = dataset.assign_coords(time=xr.Variable("time", time, dict(zip(("units", "long_name", "description"), attributes["time"]))))
     return dataset
+
+
+def _watched_events(definition: Any, stage: DynamicStage) -> tuple[str, ...]:
+    """The events a motion of ``stage`` looks for: a contact closing where the system has gaps,
+    the kinetic energy where the stage gives a threshold."""
+    return (("contact_closing",) if definition.gaps else ()) + (
+        ("kinetic_energy",) if stage.kinetic_energy_threshold is not None else ()
+    )
+
+
+def motion_event_variables(definition: Any, stage: DynamicStage) -> dict[str, tuple[str, str, str]]:
+    """name -> (units, long_name, description) of the variables of the located motion events
+    (:mod:`ncstab.dynamics.motion_events`): ``motion_<event>_time``, ``_u``, ``_velocity``,
+    ``_kinetic_energy``, and ``motion_contact_closing_gap``."""
+    time, energy = _time_unit(definition), _energy_unit(definition)
+    what = {
+        "contact_closing": "secondary contact closing (an open gap between non-neighbour grains reaching 0)",
+        "kinetic_energy": f"kinetic energy reaching the stage's kinetic_energy_threshold = {stage.kinetic_energy_threshold!r}",
+    }
+    out: dict[str, tuple[str, str, str]] = {}
+    for event in _watched_events(definition, stage):
+        prefix, first = f"motion_{event}", f"the first {what[event]} during the motion"
+        located = "located by root finding on the integrator's dense output; NaN if none"
+        out[f"{prefix}_time"] = ("1", f"time of motion event {event}", f"time since the dynamic stage began of {first}, in units of {time}; {located}")
+        out[f"{prefix}_u"] = (definition.units.displacement, f"displacements at motion event {event}", f"{definition.units.displacement_description} at {first}; NaN if none")
+        out[f"{prefix}_velocity"] = ("1", f"velocities at motion event {event}", f"du/dt of each dof at {first}, dof units per unit of time ({time}); NaN if none")
+        out[f"{prefix}_kinetic_energy"] = ("1", f"kinetic energy at motion event {event}", f"w u'^T M(u) u' / 2 at {first}, in units of {energy}; NaN if none")
+    if definition.gaps:
+        names = ", ".join(g.name for g in definition.gaps)
+        out["motion_contact_closing_gap"] = ("", "gap that closed", f"the name of the first gap to close during the motion ({names}); empty if none")
+    return out
+
+
+def _event_data(definition: Any, stage: DynamicStage, flat: list[Motion | None], shape: tuple[int, ...],
+                sweep_dims: list[str]) -> dict[str, tuple[list[str], np.ndarray]]:
+    """The arrays of :func:`motion_event_variables`, NaN (empty gap name) where an event is not met."""
+    n = definition.n_dof
+    data: dict[str, tuple[list[str], np.ndarray]] = {}
+    for event in _watched_events(definition, stage):
+        time, kinetic = np.full(len(flat), np.nan), np.full(len(flat), np.nan)
+        u, velocity = np.full((len(flat), n), np.nan), np.full((len(flat), n), np.nan)
+        gap = np.full(len(flat), "", dtype=object)
+        for k, motion in enumerate(flat):
+            located = None if motion is None else motion.events.get(event)
+            if located is not None:
+                time[k], kinetic[k], u[k], velocity[k], gap[k] = (located.time, located.kinetic_energy, located.u,
+                                                                  located.velocity, located.gap)
+        prefix = f"motion_{event}"
+        data[f"{prefix}_time"] = (sweep_dims, time.reshape(shape))
+        data[f"{prefix}_u"] = (sweep_dims + ["dof"], u.reshape(shape + (n,)))
+        data[f"{prefix}_velocity"] = (sweep_dims + ["dof"], velocity.reshape(shape + (n,)))
+        data[f"{prefix}_kinetic_energy"] = (sweep_dims, kinetic.reshape(shape))
+        if event == "contact_closing":
+            data[f"{prefix}_gap"] = (sweep_dims, gap.astype(str).reshape(shape))
+    return data

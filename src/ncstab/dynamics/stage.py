@@ -13,6 +13,13 @@ its reaction does no work); the load parameter lambda is held.  Gamma is the
 Christoffel (centripetal and Coriolis) term of a configuration-dependent mass
 (:mod:`ncstab.dynamics.equations`).
 
+Events during the motion (:data:`MOTION_EVENTS`, located by
+:mod:`ncstab.dynamics.motion_events`): ``contact_closing``, a secondary contact
+closing (a gap of the system reaching 0 from open), and ``kinetic_energy``, the
+kinetic energy reaching the stage's ``kinetic_energy_threshold``.  Each is
+located and recorded; the stage's ``stop_at`` (a stage key, as for the other
+stages) ends the motion at the ones it names.
+
 :class:`DynamicStage` is the stage as a value; :func:`parse_dynamic_stage`
 validates a raw table against a system's names and raises
 :class:`~ncstab.paths.programme.ProgrammeError` naming the field.
@@ -27,10 +34,13 @@ from typing import Any
 
 from ncstab.paths.programme import CURRENT, ProgrammeError
 
-__all__ = ["DYNAMIC_KEYS", "METHODS", "DynamicStage", "parse_dynamic_stage"]
+__all__ = ["DYNAMIC_KEYS", "METHODS", "MOTION_EVENTS", "DynamicStage", "parse_dynamic_stage"]
 
 #: Keys of a stage's ``dynamic`` table.
-DYNAMIC_KEYS = ("duration", "perturbation", "samples", "method", "rtol")
+DYNAMIC_KEYS = ("duration", "perturbation", "samples", "method", "rtol", "kinetic_energy_threshold")
+
+#: Events located during a motion, the names ``stop_at`` takes in a dynamic stage.
+MOTION_EVENTS = ("contact_closing", "kinetic_energy")
 
 #: Integrators (scipy.integrate): an explicit Runge-Kutta of order 8 for non-stiff motions,
 #: an implicit Runge-Kutta (Radau IIA, order 5) for stiff ones.
@@ -66,6 +76,13 @@ class DynamicStage:
     rtol
         Relative tolerance of the integrator (the absolute tolerances scale
         with the perturbation, :func:`ncstab.dynamics.motion.integrate_motion`).
+    kinetic_energy_threshold
+        The kinetic energy (> 0, in the units of the ``kinetic_energy``
+        variable) whose first reaching is the ``kinetic_energy`` event, or
+        ``None`` (no such event).
+    stop_at
+        Events of :data:`MOTION_EVENTS` that end the motion where they are
+        located (the others are located and recorded only).
     """
 
     duration: float
@@ -74,6 +91,8 @@ class DynamicStage:
     samples: int = DEFAULT_SAMPLES
     method: str = "DOP853"
     rtol: float = 1e-11
+    kinetic_energy_threshold: float | None = None
+    stop_at: tuple[str, ...] = ()
 
     def parameter_references(self) -> set[str]:
         """Names of parameters the held values refer to."""
@@ -98,6 +117,7 @@ def parse_dynamic_stage(
     load: str | None,
     has_inertia: bool,
     system: str = "the system",
+    gaps: Sequence[str] = (),
 ) -> DynamicStage:
     """Validate a ``[[loading]]`` table with a ``dynamic`` table into a :class:`DynamicStage`.
 
@@ -106,21 +126,27 @@ def parse_dynamic_stage(
     number
         The stage's 1-based number.
     raw
-        ``{"dynamic": {...}, "hold": {...}}`` with numbers already evaluated.
+        ``{"dynamic": {...}, "hold": {...}, "stop_at": [...]}`` with numbers
+        already evaluated (``hold`` and ``stop_at`` optional).
     dofs, forces, load
         The system's names.
     has_inertia
         Whether the system has a mass matrix (a dynamic stage needs one).
+    system
+        The system's name in messages.
+    gaps
+        The names of the system's secondary-contact gaps (``contact_closing``
+        needs one).
 
     Raises
     ------
     ProgrammeError
         Naming the stage and the field (``dynamic.duration``,
-        ``dynamic.perturbation.phi3``, ``hold.F2``...).
+        ``dynamic.perturbation.phi3``, ``hold.F2``, ``stop_at``...).
     """
-    extra = sorted(set(raw) - {"dynamic", "hold"})
+    extra = sorted(set(raw) - {"dynamic", "hold", "stop_at"})
     if extra:
-        raise ProgrammeError(number, extra[0], "a dynamic stage takes only hold and dynamic (it drives nothing)")
+        raise ProgrammeError(number, extra[0], "a dynamic stage takes only hold, dynamic and stop_at (it drives nothing)")
     table = raw["dynamic"]
     if not isinstance(table, Mapping):
         raise ProgrammeError(number, "dynamic", f"expected a table {{ duration = ..., perturbation = {{ ... }} }}, got {table!r}")
@@ -180,4 +206,29 @@ def parse_dynamic_stage(
     rtol = _number(number, "dynamic.rtol", table.get("rtol", 1e-11), "a relative tolerance from 1e-14 to 1e-3")
     if not 1e-14 <= rtol <= 1e-3:
         raise ProgrammeError(number, "dynamic.rtol", f"expected a relative tolerance from 1e-14 to 1e-3, got {rtol!r}")
-    return DynamicStage(duration, displaced, held, samples, method, rtol)
+    threshold = table.get("kinetic_energy_threshold")
+    if threshold is not None:
+        threshold = _number(number, "dynamic.kinetic_energy_threshold", threshold, "a kinetic energy > 0")
+        if threshold <= 0:
+            raise ProgrammeError(number, "dynamic.kinetic_energy_threshold", f"expected a kinetic energy > 0, got {threshold!r}")
+    stop_at = _motion_stop_at(number, raw.get("stop_at", []), threshold, tuple(gaps), system)
+    return DynamicStage(duration, displaced, held, samples, method, rtol, threshold, stop_at)
+
+
+def _motion_stop_at(number: int, raw: Any, threshold: float | None, gaps: tuple[str, ...], system: str) -> tuple[str, ...]:
+    """The events of :data:`MOTION_EVENTS` a dynamic stage stops at, each possible on the system."""
+    names = [raw] if isinstance(raw, str) else raw
+    if not isinstance(names, Sequence) or not all(isinstance(name, str) for name in names):
+        raise ProgrammeError(number, "stop_at", f"expected a list of event names ({', '.join(MOTION_EVENTS)}), got {raw!r}")
+    for name in names:
+        if name not in MOTION_EVENTS:
+            raise ProgrammeError(
+                number, "stop_at", f"unknown event {name!r}; a dynamic stage stops at: {', '.join(MOTION_EVENTS)}"
+            )
+        if name == "kinetic_energy" and threshold is None:
+            raise ProgrammeError(
+                number, "stop_at", "kinetic_energy needs the threshold: give dynamic.kinetic_energy_threshold (> 0)"
+            )
+        if name == "contact_closing" and not gaps:
+            raise ProgrammeError(number, "stop_at", f"{system} has no secondary contacts (gaps): no contact_closing")
+    return tuple(dict.fromkeys(names))

@@ -11,21 +11,30 @@ arrays.  Nothing here is derived per system.
 
 * :mod:`ncstab.elements.branch` -- a granular contact (or a gap) whose branch,
   in the frame of one of its grains, is affine in the dofs: q = (l, alpha).
+* :mod:`ncstab.elements.grain_contact` -- a contact between two rotating disks:
+  q = (l, beta), beta = alpha minus the grains' rotations weighted by their radii.
 * :mod:`ncstab.elements.bar_spring` -- a rotational spring between two rigid
   bars whose rise (sine of the bar angle) is linear in the dofs:
   q = asin(rise_b) - asin(rise_a); and the axial dead load of such bars.
+
+Every kind offers the same element protocol to the assembly
+(:mod:`ncstab.operators.assembly`): ``names``, ``dofs`` ``(m, L)``, ``size``,
+``weight`` (one number, or one per member) and ``kinematics(u, second) -> q, J, H``.
 """
 
 from ncstab.elements.bar_spring import BarSprings, bar_angles, shortening
 from ncstab.elements.branch import BranchElements, branch_kinematics
+from ncstab.elements.grain_contact import GrainContacts, grain_contact_kinematics
 from ncstab.elements.law_response import LawResponse, law_response
 
 __all__ = [
     "BarSprings",
     "BranchElements",
+    "GrainContacts",
     "LawResponse",
     "bar_angles",
     "branch_kinematics",
+    "grain_contact_kinematics",
     "law_response",
     "shortening",
 ]

@@ -80,22 +80,26 @@ def bar_angles(rise_dofs: np.ndarray, rise_signs: np.ndarray, u: np.ndarray) -> 
     return np.einsum("bk,bk->b", rise_signs, u[rise_dofs])
 
 
-def shortening(rise_dofs: np.ndarray, rise_signs: np.ndarray, u: np.ndarray):
+def shortening(rise_dofs: np.ndarray, rise_signs: np.ndarray, u: np.ndarray, lengths: np.ndarray | None = None):
     """The axial load's work per unit P and its derivatives, bar by bar.
+
+    ``lengths``: each bar's length L_i ``(bars,)`` in units of the reference length a (``None``:
+    every bar of length 1, Hencky's column); bar i shortens the chain by L_i (1 - cos theta_i).
 
     Returns
     -------
     work : float
-        sum_i (1 - cos theta_i).
+        sum_i L_i (1 - cos theta_i).
     load : (bars, K)
-        dW/dr_i a_i on each bar's dofs: r_i / cos(theta_i) times the signs.
+        dW/dr_i a_i on each bar's dofs: L_i r_i / cos(theta_i) times the signs.
     stiffness : (bars, K, K)
-        d2W/dr_i2 a_i a_i^T = cos(theta_i)^(-3) sign sign^T.
+        d2W/dr_i2 a_i a_i^T = L_i cos(theta_i)^(-3) sign sign^T.
     rises : (bars,)
     """
     r = bar_angles(rise_dofs, rise_signs, u)
     cosine = np.sqrt(1.0 - r * r)
-    work = float(np.sum(1.0 - cosine))
-    load = (r / cosine)[:, None] * rise_signs
-    stiffness = (cosine ** -3)[:, None, None] * rise_signs[:, :, None] * rise_signs[:, None, :]
+    length = np.ones_like(r) if lengths is None else np.asarray(lengths, dtype=float)
+    work = float(np.sum(length * (1.0 - cosine)))
+    load = (length * r / cosine)[:, None] * rise_signs
+    stiffness = (length * cosine ** -3)[:, None, None] * rise_signs[:, :, None] * rise_signs[:, None, :]
     return work, load, stiffness, r

@@ -66,6 +66,12 @@ class BranchElements:
         """(c, s) of every member at the dofs ``u`` ``(n,)``: ``(m, 2)``."""
         return self.origin + np.einsum("mkl,ml->mk", self.matrix, u[self.dofs])
 
+    def kinematics(self, u: np.ndarray, second: bool = True):
+        """q, J, H of every member (:func:`branch_kinematics`): the element protocol the
+        assembly reads (:mod:`ncstab.operators.assembly`), with :attr:`names`, :attr:`dofs`,
+        :attr:`weight` and :attr:`size`."""
+        return branch_kinematics(self, u, second)
+
 
 def branch_kinematics(elements: BranchElements, u: np.ndarray, second: bool = True):
     """q = (l, alpha), J = dq/du_e and H = d2q/du_e2 of every member.

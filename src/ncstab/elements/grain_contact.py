@@ -79,23 +79,50 @@ class GrainContacts:
         r_a/(r_a + r_b) and r_b/(r_a + r_b).
     scale : (m,)
         Each contact's length scale rho (its law's rest length).
+    free : (m, 6) bool or None
+        Which of the six dofs exist; a held one (False) is 0 whatever ``u`` holds at
+        its index, and its columns of J and H are 0.  ``None``: all six (the caller
+        points held dofs at a slot of ``u`` that is always 0 instead).
+    labels : tuple of str
+        The contacts' names (default ``"0"``, ``"1"``, ...).
+
+    With :attr:`names`, :attr:`weight` (rho^2, the factor of each contact's virtual work)
+    and :meth:`kinematics`, the contacts are an element family of an assembled system
+    (:mod:`ncstab.operators.assembly`), as :class:`~ncstab.elements.branch.BranchElements` are.
     """
 
     dofs: np.ndarray
     branch: np.ndarray
     lever: np.ndarray
     scale: np.ndarray
+    free: np.ndarray | None = None
+    labels: tuple[str, ...] = ()
 
     @property
     def size(self) -> int:
         return len(self.scale)
 
+    @property
+    def names(self) -> tuple[str, ...]:
+        return self.labels or tuple(map(str, range(self.size)))
+
+    @property
+    def weight(self) -> np.ndarray:
+        """rho^2 per contact: R = sum rho^2 J^T Q*, K = sum rho^2 (J^T D* J + Q* H) (module docstring)."""
+        return self.scale * self.scale
+
+    def kinematics(self, u: np.ndarray, second: bool = True):
+        """q = (l, beta), J and H of every contact (:func:`grain_contact_kinematics`)."""
+        return grain_contact_kinematics(self, u, second)
+
     @functools.cached_property
     def elements(self) -> BranchElements:
         """The branches as :class:`~ncstab.elements.branch.BranchElements` (weight 1; built once)."""
         m = self.size
-        return BranchElements(names=tuple(map(str, range(m))), dofs=self.dofs,
-                              matrix=np.broadcast_to(_BRANCH_MAP, (m, 2, 6)), origin=self.branch)
+        matrix = np.broadcast_to(_BRANCH_MAP, (m, 2, 6))
+        if self.free is not None:
+            matrix = matrix * self.free[:, None, :]
+        return BranchElements(names=tuple(map(str, range(m))), dofs=self.dofs, matrix=matrix, origin=self.branch)
 
 
 def grain_contact_kinematics(contacts: GrainContacts, u: np.ndarray, second: bool = True):
@@ -106,7 +133,7 @@ def grain_contact_kinematics(contacts: GrainContacts, u: np.ndarray, second: boo
     contacts
         The contacts.
     u : (n,)
-        Every dof (held ones 0), indexed by ``contacts.dofs``.
+        Every dof, indexed by ``contacts.dofs`` (held ones 0, or masked by ``contacts.free``).
     second
         Whether to compute H.
 
@@ -118,12 +145,13 @@ def grain_contact_kinematics(contacts: GrainContacts, u: np.ndarray, second: boo
     """
     q, J, H = branch_kinematics(contacts.elements, u, second=second)
     rho = contacts.scale
+    lever = contacts.lever if contacts.free is None else contacts.lever * contacts.free[:, [2, 5]]
     theta = u[contacts.dofs[:, [2, 5]]]
-    q = np.stack([q[:, 0] / rho, q[:, 1] - np.sum(contacts.lever * theta, axis=1)], axis=1)
+    q = np.stack([q[:, 0] / rho, q[:, 1] - np.sum(lever * theta, axis=1)], axis=1)
     J = J.copy()
     J[:, 0] /= rho[:, None]
-    J[:, 1, 2] -= contacts.lever[:, 0]
-    J[:, 1, 5] -= contacts.lever[:, 1]
+    J[:, 1, 2] -= lever[:, 0]
+    J[:, 1, 5] -= lever[:, 1]
     if H is not None:
         H = H.copy()
         H[:, 0] /= rho[:, None, None]

@@ -6,8 +6,11 @@ For every element family of an :class:`~ncstab.systems.assembled.AssembledSystem
     R = sum_e w J_e^T Q_e - P Q_ext + gap springs,
     K = dR/du = sum_e w [J_e^T D_e J_e + sum_c Q_ec H_ec] - P dQ_ext/du + gap springs,
 
-with J_e, H_e the members' kinematics on their own dofs
-(:mod:`ncstab.elements`), Q_e, D_e the law's response
+with J_e, H_e the members' kinematics on their own dofs (the element protocol
+of :mod:`ncstab.elements`: a contact is a branch, ``BranchElements``, or a
+contact between rotating disks, ``GrainContacts``, whose w = rho_e^2 is its own;
+both give q = (l, alpha) -- alpha is beta for rotating disks -- with J and H),
+Q_e, D_e the law's response
 (:func:`ncstab.elements.law_response`), Q_ext the axial load per unit P
 (:func:`ncstab.elements.shortening`), and each closed secondary contact a
 frictionless spring of energy w kappa g^2 / 2 (g = centre distance - 1):
@@ -69,12 +72,18 @@ def _scatter(n: int, dofs: np.ndarray, blocks: np.ndarray, dense: bool):
     return sparse.csr_matrix((blocks.ravel(), (rows, cols)), shape=(n, n))
 
 
+def _weights(weight, m: int) -> np.ndarray:
+    """The members' weights ``(m,)`` (one for the family, or one per member)."""
+    return np.broadcast_to(np.asarray(weight, dtype=float), (m,))
+
+
 def _family(kinematics, response, weight, parameters, internal, n, dense):
     q, J, H = kinematics
     f = response.stored_forces(q, internal, parameters)
     Q, D, C = response.response(q, f, parameters)
-    forces = weight * np.einsum("mkl,mk->ml", J, Q)
-    blocks = weight * (np.einsum("mka,mkp,mpb->mab", J, D, J) + np.einsum("mk,mkab->mab", Q, H))
+    w = _weights(weight, len(q))
+    forces = w[:, None] * np.einsum("mkl,mk->ml", J, Q)
+    blocks = w[:, None, None] * (np.einsum("mka,mkp,mpb->mab", J, D, J) + np.einsum("mk,mkab->mab", Q, H))
     return q, f, J, C, forces, blocks
 
 
@@ -156,7 +165,7 @@ def assemble(
     if system.contacts is not None:
         elements = system.contacts
         values = {**parameters, "alpha0": system.contact_alpha0}
-        q, f, J, C, forces, blocks = _family(branch_kinematics(elements, u), law_response(law), elements.weight,
+        q, f, J, C, forces, blocks = _family(elements.kinematics(u), law_response(law), elements.weight,
                                              values, internal["contacts"], n, dense)
         members["contacts"] = {"q": q, "f": f, "J": J, "C": C, "dofs": elements.dofs}
         np.add.at(R, elements.dofs, forces)
@@ -173,7 +182,7 @@ def assemble(
     dR_dload = np.zeros(n)
     if system.axial_load is not None:
         bars = system.axial_load
-        _, vector, stiffness, _ = shortening(bars.rise_dofs, bars.rise_signs, u)
+        _, vector, stiffness, _ = shortening(bars.rise_dofs, bars.rise_signs, u, bars.lengths)
         np.add.at(dR_dload, bars.rise_dofs, -vector)
         R += load * dR_dload
         dofs_parts.append(bars.rise_dofs)
@@ -221,7 +230,7 @@ def energy_forms(
     inner, outer = 0.0, 0.0
     families = []
     if system.contacts is not None:
-        families.append(("contacts", branch_kinematics(system.contacts, u), law_response(law), system.contacts,
+        families.append(("contacts", system.contacts.kinematics(u), law_response(law), system.contacts,
                          {**parameters, "alpha0": system.contact_alpha0}))
     if system.springs is not None:
         families.append(("springs", system.springs.kinematics(u), law_response(system.spring_law), system.springs,
@@ -231,7 +240,8 @@ def energy_forms(
         Q, D, _ = response.response(q, f, values)
         a, b = np.einsum("mkl,ml->mk", J, left[elements.dofs]), np.einsum("mkl,ml->mk", J, right[elements.dofs])
         curvature = np.einsum("mkab,ma,mb->mk", H, left[elements.dofs], right[elements.dofs])
-        inner += elements.weight * float(np.sum(np.einsum("mk,mkp,mp->m", a, D, b) + np.sum(Q * curvature, axis=1)))
+        member = np.einsum("mk,mkp,mp->m", a, D, b) + np.sum(Q * curvature, axis=1)
+        inner += float(np.sum(_weights(elements.weight, len(q)) * member))
     if closed is not None and len(closed):
         springs = gap_elements(system, closed)
         q, J, H = branch_kinematics(springs, u)
@@ -244,5 +254,6 @@ def energy_forms(
         r = np.einsum("bk,bk->b", bars.rise_signs, u[bars.rise_dofs])
         a = np.einsum("bk,bk->b", bars.rise_signs, left[bars.rise_dofs])
         b = np.einsum("bk,bk->b", bars.rise_signs, right[bars.rise_dofs])
-        outer += float(np.sum((1.0 - r * r) ** -1.5 * a * b))
+        length = 1.0 if bars.lengths is None else bars.lengths
+        outer += float(np.sum(length * (1.0 - r * r) ** -1.5 * a * b))
     return inner, outer

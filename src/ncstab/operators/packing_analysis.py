@@ -340,5 +340,5 @@ def participation(packing: Packing, modes: np.ndarray) -> np.ndarray:
 def mode_components(packing: Packing, modes: np.ndarray) -> np.ndarray:
     """Modes over the free dofs ``(k, n)`` as ``(k, g, 3)`` (x, y, theta; held grains 0)."""
     out = np.zeros((len(modes), packing.n_grains, 3))
-    out[:, packing.free] = modes.reshape(len(modes), -1, 3)
+    out[:, packing.free] = modes.reshape(len(modes), len(packing.free), 3)  # (also no mode: --modes 0)
     return out

@@ -296,7 +296,8 @@ def follow(
     options = options or PathOptions()
     definition = model.definition
     if not isinstance(programme, LoadingProgramme):
-        programme = parse_programme(programme, definition.dofs, definition.forces, definition.load_parameter)
+        programme = parse_programme(programme, definition.dofs, definition.forces, definition.load_parameter,
+                                    getattr(definition, "hold_other_forces", False))
     grid = ParameterGrid.from_mapping(with_branches(programme, parameters or {}))
     known = model.known_parameters() | ({BRANCH_DIMENSION} if programme.follows_branches else set())
     if model.normal == "rigid":

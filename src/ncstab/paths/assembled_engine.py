@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse.linalg as splinalg
 
-from ncstab.elements import branch_kinematics, law_response
+from ncstab.elements import law_response
 from ncstab.operators.assembly import AssembledState, assemble
 from ncstab.paths.assembled_control import StageControl
 from ncstab.paths.options import PathOptions
@@ -88,10 +88,14 @@ class CaseRun:
             self.responses["springs"] = law_response(system.spring_law)
 
     # --- states -----------------------------------------------------------------------
-    def zero_internal(self) -> dict[str, np.ndarray]:
+    def initial_internal(self) -> dict[str, np.ndarray]:
+        """The stored forces at the start, u = 0: the system's ``contact_forces`` where it
+        gives them (a packing's contacts carry its forces), else zero."""
         out = {}
         if self.system.contacts is not None:
-            out["contacts"] = np.zeros((self.system.contacts.size, self.responses["contacts"].forces))
+            given = self.system.contact_forces
+            shape = (self.system.contacts.size, self.responses["contacts"].forces)
+            out["contacts"] = np.zeros(shape) if given is None else np.array(given, dtype=float).reshape(shape)
         if self.system.springs is not None:
             out["springs"] = np.zeros((self.system.springs.size, self.responses["springs"].forces))
         return out
@@ -110,7 +114,7 @@ class CaseRun:
         the step along a path (second order along chords; measured in the tests).
         """
         if start is None:
-            return self.zero_internal()
+            return self.initial_internal()
         out = {}
         chord = u - start.u
         v = chord if velocity is None else velocity
@@ -137,7 +141,7 @@ class CaseRun:
 
     def _kinematics(self, family: str, u: np.ndarray):
         if family == "contacts":
-            return branch_kinematics(self.system.contacts, u, second=False)[:2]
+            return self.system.contacts.kinematics(u, second=False)[:2]
         return self.system.springs.kinematics(u, second=False)[:2]
 
     def evaluate(self, u: np.ndarray, load: float, internal: dict[str, np.ndarray]) -> AssembledState:

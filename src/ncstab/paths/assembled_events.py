@@ -11,7 +11,7 @@ import numpy as np
 from ncstab.operators.sparse_indicators import critical_eigenvalue
 from ncstab.paths.assembled_engine import Point
 
-__all__ = ["EIGENVALUE_NOISE", "SAME_POINT", "SECANT_NOISE"]
+__all__ = ["EIGENVALUE_NOISE", "SAME_POINT", "SECANT_NOISE", "SWITCHED"]
 
 
 #: Below this part of max |K_ij| an eigenvalue (Hill's, the one nearest zero) carries no sign.
@@ -23,6 +23,13 @@ SAME_POINT = 1e-6
 #: bifurcation dR/dlambda is proportional to the small amplitude, and the corrector's lambda on
 #: a column of 2,000 links jitters by 2e-12 of itself (1e-12 gave spurious turning points).
 SECANT_NOISE = 1e-10
+#: Marks the indicators of a located bifurcation point where the path switched branch.  The first
+#: step's secant from it carries no sign: the point's lambda is the pencil's Rayleigh quotient
+#: (:func:`~ncstab.paths.assembled_path.refine_critical_load`) and the next one's is Newton's, two
+#: roundings of lambda of relative size eps (n/pi)^2 on a column of n links (1.4e-10 at 5,001 links),
+#: while the branch itself rises by O(h^2) (P1 theta^2 / 8, 1e-18 there).  The secant's sign is
+#: taken from the steps after it, so that rounding is not read as a turning point.
+SWITCHED = "switched_here"
 
 
 @dataclass(frozen=True)
@@ -70,7 +77,10 @@ def _steady(stepper, p: Point, q: Point) -> dict:
     scale = float(abs(K).max()) if K.shape[0] else 1.0
     noise = EIGENVALUE_NOISE * max(scale, 1e-300)
     rise = float(q.y[-1] - p.y[-1])  # the secant's dlambda: robust where the tangent is not
-    b["secant"] = a.get("secant", 0.0) if abs(rise) <= SECANT_NOISE * max(1.0, abs(q.y[-1])) else rise
+    if a.get(SWITCHED):  # the first step off a switched bifurcation: no sign yet (see SWITCHED)
+        b["secant"] = 0.0
+    else:
+        b["secant"] = a.get("secant", 0.0) if abs(rise) <= SECANT_NOISE * max(1.0, abs(q.y[-1])) else rise
     if b.get("exact"):  # signs computed without K's rounding (ncstab.paths.trivial_path): nothing to carry
         return b
     if abs(b["hill"]) <= noise:

@@ -13,6 +13,7 @@ from ncstab.paths.assembled_engine import GAP_REACH, MAX_LAMBDA_STEP, MAX_RELATI
 from ncstab.paths import assembled_events
 from ncstab.paths.assembled_events import (
     SAME_POINT,
+    SWITCHED,
     _crossed_segment,
     _event_names,
     _indicator_key,
@@ -197,7 +198,10 @@ def refine_critical_load(stepper: Stepper, e: Point) -> Point:
     if refined is None or abs(refined.load - e.load) > 1e-6 * max(abs(e.load), 1e-300):
         return e
     refined.internal = e.internal
-    refined.tangent = stepper.tangent(refined, e.tangent)
+    try:
+        refined.tangent = stepper.tangent(refined, e.tangent)
+    except np.linalg.LinAlgError:  # exactly critical: a chain of one dof, K = 0 and dR/dP = 0 there
+        refined.tangent = e.tangent
     refined.indicators = e.indicators
     return refined
 
@@ -213,8 +217,8 @@ def follow_case(run: CaseRun, programme: LoadingProgramme, values: dict[str, flo
     out = CaseOutcome()
     options = run.options
     u = np.zeros(run.n)
-    state = run.evaluate(u, 0.0, run.zero_internal())
-    previous = Point(np.zeros(0), u, 0.0, state, run.zero_internal())
+    state = run.evaluate(u, 0.0, run.initial_internal())
+    previous = Point(np.zeros(0), u, 0.0, state, run.initial_internal())
     s = 0.0
     for number, stage in enumerate(programme.stages):
         control = stage_control(stage, number + 1, dofs, forces, load_name, previous.u, previous.state.R,
@@ -333,7 +337,7 @@ def follow_case(run: CaseRun, programme: LoadingProgramme, values: dict[str, flo
             if what == "switch":
                 switched = True
                 e.tangent = _switch_direction(stepper, e, sense_switch)
-                e.indicators = _quiet(e.indicators, ("det", "det_SS", "bordered", "hill", "secant"))
+                e.indicators = {**_quiet(e.indicators, ("det", "det_SS", "bordered", "hill", "secant")), SWITCHED: True}
             else:  # a secondary contact closes: its spring acts from here on
                 pairs, gaps = e.indicators["gap_pairs"], e.indicators["gap_values"]
                 run.closed = np.concatenate([run.closed, pairs[gaps <= 1e-9 * max(1.0, np.max(np.abs(e.u)))]])

@@ -68,7 +68,8 @@ class AssembledPathResult:
     @property
     def force_unit(self) -> str:
         definition = self.model.definition
-        return "2R k_n" if definition.family("contact") is not None else definition.units.force_unit
+        unit = definition.units.force_unit  # a packing's k_n d
+        return "2R k_n" if definition.family("contact") is not None and unit == "1" else unit
 
     @property
     def shape(self) -> tuple[int, ...]:
@@ -112,8 +113,8 @@ def follow_assembled(model: "Model", programme: LoadingProgramme, grid: Any, val
                 if parameter.name not in case_values and parameter.default is not None:
                     case_values[parameter.name] = float(parameter.default)
             contact_law = law if definition.contacts is not None else None
-            run = CaseRun(definition.for_values(case_values), contact_law, case_values, options,
-                          model.secondary_contacts)
+            system = definition.for_values(case_values, contact_law)
+            run = CaseRun(system, contact_law, case_values, options, model.secondary_contacts)
             outcomes.append(follow_case(run, programme, case_values, definition.dofs, definition.forces,
                                         definition.load_parameter))
             if progress is not None:

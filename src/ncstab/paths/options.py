@@ -141,11 +141,18 @@ class SystemSpec:
     normal
         ``"deformable"`` (default) or ``"rigid"``: the pure-shear limit of the
         seed (k_n -> infinity, Eq. 60-68; the reduced diamond only).
-    reduction, grains, links, load
+    reduction, grains, links, load, file
         The system's structural settings (``None``: the default, where it has
         one): the diamond's ``reduction`` (``"symmetric"``, the seed's two
         dofs, or ``"axes"``, four), a ring's ``grains``, a column's ``links``,
-        Ziegler's ``load`` (``"follower"`` or ``"dead"``).
+        Ziegler's ``load`` (``"follower"`` or ``"dead"``), a packing's
+        ``file`` (its absolute path).
+    grain, contacts, rotations
+        The grains of ``name = "grains"`` (``((x, y, radius, held), ...)``), their
+        contacts (``((a, b), ...)``) and whether they rotate (:mod:`ncstab.systems.user_grains`).
+    joints, supports, springs
+        The chain of ``name = "bars"``: its joints' heights, supported joints and springs'
+        stiffnesses (:mod:`ncstab.systems.user_bars`).
     """
 
     name: str = "diamond"
@@ -155,6 +162,13 @@ class SystemSpec:
     grains: int | None = None
     links: int | None = None
     load: str | None = None
+    file: str | None = None
+    grain: tuple | None = None
+    contacts: tuple | None = None
+    rotations: bool | None = None
+    joints: tuple | None = None
+    supports: tuple | None = None
+    springs: float | tuple | None = None
 
     def __post_init__(self) -> None:
         from ncstab.systems import SYSTEMS
@@ -178,7 +192,9 @@ class SystemSpec:
     @property
     def given_settings(self) -> dict[str, object]:
         """The structural settings given (not ``None``)."""
-        values = {"reduction": self.reduction, "grains": self.grains, "links": self.links, "load": self.load}
+        values = {"reduction": self.reduction, "grains": self.grains, "links": self.links, "load": self.load,
+                  "file": self.file, "grain": self.grain, "contacts": self.contacts, "rotations": self.rotations,
+                  "joints": self.joints, "supports": self.supports, "springs": self.springs}
         return {k: v for k, v in values.items() if v is not None}
 
     @property

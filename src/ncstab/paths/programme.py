@@ -211,7 +211,8 @@ def _check_stop_at(stage: int, stop_at: Any) -> tuple[str, ...]:
 
 
 def _parse_linear(
-    number: int, raw: Mapping[str, Any], dofs: Sequence[str], forces: Sequence[str], load: str | None
+    number: int, raw: Mapping[str, Any], dofs: Sequence[str], forces: Sequence[str], load: str | None,
+    hold_others: bool = False,
 ) -> Stage:
     quantities = list(dofs) + list(forces) + ([load] if load else [])
     hold = raw.get("hold", {}) or {}
@@ -243,7 +244,7 @@ def _parse_linear(
                 number, f"{controlled[force]}.{force}",
                 f"dof {dof}/{force} is controlled twice: prescribe either {dof} or {force}",
             )
-        if dof not in controlled and force not in controlled and not load_stage:
+        if dof not in controlled and force not in controlled and not load_stage and not hold_others:
             raise ProgrammeError(
                 number, "hold", f"dof {dof}/{force} is not controlled: hold or drive {dof} or {force}"
             )
@@ -329,6 +330,7 @@ def parse_programme(
     dofs: Sequence[str] = ("D1", "D2"),
     forces: Sequence[str] = ("F1", "F2"),
     load: str | None = None,
+    hold_others: bool = False,
 ) -> LoadingProgramme:
     """Validate raw stage tables (as in a study file) into a programme.
 
@@ -341,6 +343,10 @@ def parse_programme(
         The system's displacement and force names.
     load
         The system's load parameter (``"P"``), or ``None``.
+    hold_others
+        A linear stage may leave dofs uncontrolled: their forces are held at their
+        values when it starts (a system of many dofs, such as a packing, whose
+        :attr:`~ncstab.systems.assembled.AssembledSystem.hold_other_forces` says so).
 
     Raises
     ------
@@ -376,5 +382,5 @@ def parse_programme(
             raise ProgrammeError(
                 number, sorted(unknown)[0], "unknown key; a stage takes hold, drive, stop_at, at_bifurcation (or cycle)"
             )
-        parsed.append(_parse_linear(number, raw, dofs, forces, load))
+        parsed.append(_parse_linear(number, raw, dofs, forces, load, hold_others))
     return LoadingProgramme(tuple(parsed))

@@ -93,7 +93,9 @@ RESERVED_NAMES = frozenset(
      "current", "pi", "e", CASE_DIMENSION, "map_D1", "map_D2", *MEMBER_DIMENSIONS,
      # the motion of a dynamic stage (ncstab.dynamics.runs)
      "time", "u_t", "velocity", "kinetic_energy", "external_work", "internal_work", "dissipated_work",
-     "motion_status", "motion_message", "motion_steps"}
+     "motion_status", "motion_message", "motion_steps", "motion_contact_closing_gap",
+     *(f"motion_{event}_{field}" for event in ("contact_closing", "kinetic_energy")
+       for field in ("time", "u", "velocity", "kinetic_energy"))}
     | set(VARIABLES)
     | {f"{event}_{suffix}" for event in (
         "limit_point", "bifurcation", "hill_loss", "controllability_loss", "flutter_onset", "divergence",

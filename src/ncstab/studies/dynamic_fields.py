@@ -55,7 +55,7 @@ def read_dynamic_stage(
     Parameters
     ----------
     raw
-        The stage's table (``hold`` and ``dynamic``).
+        The stage's table (``hold``, ``dynamic`` and ``stop_at``).
     number, count
         Its 1-based number and the number of stages (it must be the last).
     errors, references
@@ -70,8 +70,8 @@ def read_dynamic_stage(
     table = raw.get("dynamic")
     if number != count:
         errors.add(f"{prefix}.dynamic", f"a dynamic stage is the programme's last (this is stage {number} of {count})")
-    for key in sorted(set(raw) - {"dynamic", "hold"}):
-        errors.add(f"{prefix}.{key}", "a dynamic stage drives nothing: it takes hold and dynamic only")
+    for key in sorted(set(raw) - {"dynamic", "hold", "stop_at"}):
+        errors.add(f"{prefix}.{key}", "a dynamic stage drives nothing: it takes hold, dynamic and stop_at only")
     if not isinstance(table, dict):
         errors.add(f"{prefix}.dynamic", f"expected a table {{ duration = ..., perturbation = {{ ... }} }}, got {toml_type(table)}")
         return None
@@ -84,13 +84,16 @@ def read_dynamic_stage(
         if key in clean and isinstance(clean[key], str):
             value = read_number(clean[key], f"{prefix}.dynamic.{key}", errors)
             clean[key] = value if value is not None else 1.0
+    if "kinetic_energy_threshold" in clean:  # an expression, or what is wrong with it named here
+        value = read_number(clean["kinetic_energy_threshold"], f"{prefix}.dynamic.kinetic_energy_threshold", errors)
+        clean["kinetic_energy_threshold"] = value if value is not None else 1.0
     perturbation = clean.get("perturbation")
     if isinstance(perturbation, dict):
         clean["perturbation"] = {}
         for name, value in perturbation.items():
             number_value = read_number(value, f"{prefix}.dynamic.perturbation.{name}", errors)
             clean["perturbation"][name] = 0.0 if number_value is None else number_value
-    stage: dict[str, Any] = {"dynamic": clean}
+    stage: dict[str, Any] = {"dynamic": clean, "stop_at": raw.get("stop_at", [])}
     hold = raw.get("hold", {})
     if isinstance(hold, dict):
         stage["hold"] = {q: stage_value(v, f"{prefix}.hold.{q}", errors, references) for q, v in hold.items()}
@@ -100,7 +103,7 @@ def read_dynamic_stage(
     try:
         parsed = parse_dynamic_stage(
             number, stage, definition.dofs, definition.forces, definition.load_parameter,
-            definition.mass is not None, f"system {definition.name!r}",
+            definition.mass is not None, f"system {definition.name!r}", tuple(g.name for g in definition.gaps),
         )
     except ProgrammeError as error:
         errors.add(f"{prefix}.{error.field}", str(error).split(f"field {error.field!r}: ", 1)[-1])

@@ -213,7 +213,8 @@ def parse_study(text: str, path: str | None = None) -> Study:
     check_law_spellings(laws, definitions, errors)
     law_only = {p.name for d in (definitions if all_laws_valid else LAWS.values()) for p in d.parameters}
     law_only -= set(system_parameter_names(None))
-    system, kind, system_raw = system_section(data, errors, law_only)
+    folder = str(FilePath(path).parent) if path is not None and not str(path).startswith("<") else None
+    system, kind, system_raw = system_section(data, errors, law_only, folder)
     user_laws_need_a_deformable_normal(system, user_laws, errors)
     if kind is not None:
         check_law_kinds(errors, definitions, system)

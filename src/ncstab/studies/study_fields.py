@@ -33,7 +33,8 @@ SYSTEM_KEYS = ("name", "secondary_contacts", "normal")
 
 
 #: Structural settings of every shipped system (when the system itself is unknown).
-ALL_SETTINGS = ("reduction", "grains", "links", "load")
+ALL_SETTINGS = ("reduction", "grains", "links", "load", "file", "grain", "contacts", "rotations",
+                "joints", "supports", "springs")
 
 
 STAGE_KEYS = ("hold", "drive", "stop_at", "cycle", "at_bifurcation", "dynamic")

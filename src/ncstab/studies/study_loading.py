@@ -158,6 +158,7 @@ def loading_section(
         return None, references
     definition = system.definition
     dofs, forces, load = definition.dofs, definition.forces, definition.load_parameter
+    others = getattr(definition, "hold_other_forces", False)  # a packing: uncontrolled forces held
     clean: list[dict[str, Any]] = []
     dynamic = None
     before = len(errors)
@@ -175,8 +176,10 @@ def loading_section(
         stage, checkable = read_stage(raw, prefix, errors, references, forces)
         if not checkable:
             continue
+        if system.name in ("grains", "bars") and _held_controls(stage, prefix, system, errors):
+            continue
         try:  # one stage at a time, so that every stage's errors are reported
-            parse_programme([stage], dofs, forces, load)
+            parse_programme([stage], dofs, forces, load, others)
         except ProgrammeError as error:
             field = prefix if error.field in ("", "loading") else f"{prefix}.{error.field}"
             errors.add(field, programme_message(error))
@@ -189,10 +192,29 @@ def loading_section(
 
         clean.append(rest_stage(forces))
     try:
-        return dataclasses.replace(parse_programme(clean, dofs, forces, load), dynamic=dynamic), references
+        return dataclasses.replace(parse_programme(clean, dofs, forces, load, others), dynamic=dynamic), references
     except ProgrammeError as error:  # pragma: no cover - every stage passed alone
         errors.add("loading", programme_message(error))
         return None, references
+
+
+def _held_controls(stage: Mapping[str, Any], prefix: str, system: SystemSpec, errors: FieldErrors) -> bool:
+    """Report each quantity of a stage that a grain of ``[system] grain`` or a support of
+    ``[system] supports`` holds (a dof both fixed and driven); whether there was one."""
+    from ncstab.systems.user_bars import supported_quantity_problem
+    from ncstab.systems.user_grains import held_quantity_problem
+
+    found = False
+    for table in ("hold", "drive"):
+        for name in stage.get(table) or {}:
+            if system.name == "bars":
+                problem = supported_quantity_problem(name, system.joints or (), system.supports)
+            else:
+                problem = held_quantity_problem(name, system.grain or (), bool(system.rotations in (None, True)))
+            if problem is not None:
+                errors.add(f"{prefix}.{table}.{name}", problem)
+                found = True
+    return found
 
 
 OPTION_FIELDS = {f.name: f for f in dataclasses.fields(PathOptions)}

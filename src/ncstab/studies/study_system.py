@@ -51,10 +51,11 @@ def study_section(data: Mapping[str, Any], errors: FieldErrors) -> tuple[str, st
 
 
 def system_section(
-    data: Mapping[str, Any], errors: FieldErrors, law_parameters: set[str]
+    data: Mapping[str, Any], errors: FieldErrors, law_parameters: set[str], base: str | None = None
 ) -> tuple[SystemSpec, SystemKind | None, dict[str, Any]]:
     """SystemSpec, the system's kind (``None`` if unknown or its settings are bad) and
-    the raw parameters given there (shorthands such as ``damping = [b1, b2]`` expanded)."""
+    the raw parameters given there (shorthands such as ``damping = [b1, b2]`` expanded);
+    ``base``: the study file's folder, against which a packing's ``file`` is resolved."""
     table = read_table(data, "system", errors) or {}
     settings: dict[str, Any] = {}
     name = table.get("name", "diamond")
@@ -70,7 +71,10 @@ def system_section(
         if key not in table:
             continue
         value = table[key]
-        if kind is not None and not kind.granular:
+        if kind is not None and name in ("packing", "grains"):
+            errors.add(f"system.{key}", f"system {name!r} follows the contacts it is given (new contacts are not "
+                                        f"detected, each contact's law is its own): {key} does not apply to it")
+        elif kind is not None and not kind.granular:
             errors.add(f"system.{key}", f"system {name!r} has no grains in contact: {key} does not apply to it")
         elif not isinstance(value, str) or value not in allowed:
             shown = repr(value) if isinstance(value, str) else toml_type(value)
@@ -82,6 +86,10 @@ def system_section(
     for key in structural:
         if key in table:
             settings[key] = table[key]
+    if name == "packing" and "file" in settings:  # relative to the study file (docs/packing-paths.md)
+        from ncstab.systems.packing_system import resolve_packing_file
+
+        settings["file"] = resolve_packing_file(settings["file"], base)
     if kind is not None:
         for setting in kind.settings:
             value = settings.get(setting.name, setting.default)
@@ -93,6 +101,13 @@ def system_section(
                 shown = repr(value) if isinstance(value, (str, int, float)) else toml_type(value)
                 errors.add(f"system.{setting.name}", f"{setting.name} = {shown} is not allowed for system {name!r}: give {problem}")
                 kind = None
+    if kind is not None and kind.check_together is not None:  # a contact naming a missing grain, overlaps
+        values = {s.name: settings.get(s.name, s.default) for s in kind.settings}
+        for field_name, problem in kind.check_together(**values):
+            errors.add(f"system.{field_name}", problem)
+            kind = None
+    if kind is not None:
+        settings.update({s.name: s.frozen(settings[s.name]) for s in kind.settings if s.name in settings})
     spec = SystemSpec()
     if kind is not None:
         try:

@@ -6,8 +6,10 @@ expression.  An :class:`AssembledSystem` holds
 
 * its dofs and their conjugate forces (names, as a
   :class:`~ncstab.systems.SystemDefinition` has them);
-* its granular contacts (:class:`~ncstab.elements.BranchElements`, each
-  member's own ``alpha0``) and/or its rotational springs between bars
+* its granular contacts (:class:`~ncstab.elements.BranchElements`, or
+  :class:`~ncstab.elements.GrainContacts` between rotating disks; each
+  member's own ``alpha0``, and the stored forces they carry at u = 0)
+  and/or its rotational springs between bars
   (:class:`~ncstab.elements.BarSprings`, with their own law);
 * its grains' positions, affine in the dofs (``grain_origin + grain_matrix
   u[grain_dofs]``), from which the unilateral gaps between grains that are not
@@ -32,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from ncstab.elements import BarSprings, BranchElements
+from ncstab.elements import BarSprings, BranchElements, GrainContacts
 from ncstab.systems.definition import FamilyNames, SystemUnits
 
 __all__ = ["AssembledSystem", "AxialLoad", "ElementFamily", "GrainPositions", "is_assembled"]
@@ -56,12 +58,15 @@ class AxialLoad:
     """An axial dead load P on bars whose rises are signed sums of dofs.
 
     ``rise_dofs``, ``rise_signs``: ``(bars, K)``; bar i rises by
-    ``sum_k rise_signs[i, k] u[rise_dofs[i, k]]`` (the sine of its angle).
+    ``sum_k rise_signs[i, k] u[rise_dofs[i, k]]`` (the sine of its angle); the load does the
+    work P sum_i L_i (1 - cos theta_i), L_i = ``lengths[i]`` (1 where ``lengths`` is None).
     """
 
     rise_dofs: np.ndarray
     rise_signs: np.ndarray
     parameter: str = "P"
+    #: Each bar's length ``(bars,)`` in units of a, or ``None`` (every bar of length 1).
+    lengths: np.ndarray | None = None
     kind: str = "dead"
     units: str = "C/a"
     description: str = "axial dead load P (units C/a)"
@@ -109,13 +114,24 @@ class AssembledSystem:
     spring_rest
         ``values -> (m,)`` the springs' stress-free q for a case's parameter values, or
         ``None`` (stress-free straight); :meth:`for_values` applies it.
+    contact_forces
+        The contacts' stored forces at u = 0, ``(m, forces)`` in their law's units
+        (a rate law's internal variables start there), or ``None``: zero.
+    case_system
+        ``(system, law, values) -> system``: the system of one case, whose contacts
+        depend on the contact law and the case's parameters (a packing's rest lengths
+        and alpha0 carry its forces, :mod:`ncstab.systems.packing_system`), or ``None``;
+        :meth:`for_values` applies it.
+    hold_other_forces
+        A loading stage may leave dofs uncontrolled: their forces are held where they
+        are when it starts (a packing's thousands of dofs), instead of an error.
     """
 
     name: str
     title: str
     dofs: tuple[str, ...]
     forces: tuple[str, ...]
-    contacts: BranchElements | None = None
+    contacts: BranchElements | GrainContacts | None = None
     contact_alpha0: np.ndarray | None = None
     springs: BarSprings | None = None
     spring_law: Any = None
@@ -128,15 +144,22 @@ class AssembledSystem:
     work_factor: float = 1.0
     system_parameters: tuple = ()
     spring_rest: Callable[[dict[str, float]], np.ndarray] | None = None
+    contact_forces: np.ndarray | None = None
+    case_system: Callable[[AssembledSystem, Any, dict[str, float]], AssembledSystem] | None = None
+    hold_other_forces: bool = False
 
-    def for_values(self, values: dict[str, float]) -> AssembledSystem:
-        """The system of one case: its springs stress-free where its parameters say."""
-        if self.spring_rest is None or self.springs is None:
-            return self
-        rest = self.spring_rest(values)
+    def for_values(self, values: dict[str, float], law: Any = None) -> AssembledSystem:
+        """The system of one case: its springs stress-free where its parameters say, its
+        contacts those of the contact ``law`` and ``values`` where :attr:`case_system` says."""
+        system = self
+        if self.case_system is not None and law is not None:
+            system = self.case_system(self, law, values)
+        if system.spring_rest is None or system.springs is None:
+            return system
+        rest = system.spring_rest(values)
         if not np.any(rest):
-            return self
-        return dataclasses.replace(self, springs=dataclasses.replace(self.springs, rest=rest))
+            return system
+        return dataclasses.replace(system, springs=dataclasses.replace(system.springs, rest=rest))
 
     def __post_init__(self) -> None:
         n = len(self.dofs)
@@ -161,7 +184,8 @@ class AssembledSystem:
     def families(self) -> tuple[ElementFamily, ...]:
         out = []
         if self.contacts is not None:
-            out.append(ElementFamily("contacts", "contact", self.contacts.names, self.contacts.weight, None,
+            weight = self.contacts.weight if np.ndim(self.contacts.weight) == 0 else 1.0  # else each member's own
+            out.append(ElementFamily("contacts", "contact", self.contacts.names, weight, None,
                                      (("alpha0", self.contact_alpha0),)))
         if self.springs is not None:
             out.append(ElementFamily("springs", "spring", self.springs.names, self.springs.weight, self.spring_law))

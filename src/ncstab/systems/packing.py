@@ -69,6 +69,9 @@ class Packing:
     contacts : (c, 2) int
         ``grain_a``, ``grain_b``.
     normal_force, tangential_force : (c,)
+    held : (g, 3) bool or None
+        Which of each grain's dofs (x, y, theta) are held; ``None``: those of the ``fixed``
+        grains (a packing file holds whole grains; a study's grain list, single dofs).
     """
 
     x: np.ndarray
@@ -79,6 +82,7 @@ class Packing:
     normal_force: np.ndarray
     tangential_force: np.ndarray
     source: str = field(default="<memory>")
+    held: np.ndarray | None = None
 
     @property
     def n_grains(self) -> int:
@@ -89,29 +93,38 @@ class Packing:
         return len(self.contacts)
 
     @property
+    def held_dofs(self) -> np.ndarray:
+        """``(g, 3)`` bool: each grain's held dofs (x, y, theta)."""
+        if self.held is not None:
+            return np.asarray(self.held, dtype=bool)
+        return np.repeat(np.asarray(self.fixed, dtype=bool)[:, None], 3, axis=1)
+
+    @property
     def free(self) -> np.ndarray:
-        """Indices of the free grains, ``(f,)``."""
-        return np.flatnonzero(~self.fixed)
+        """Indices of the grains with a dof that is not held, ``(f,)``."""
+        return np.flatnonzero(~self.held_dofs.all(axis=1))
 
     @property
     def n_dof(self) -> int:
-        return 3 * int(np.count_nonzero(~self.fixed))
+        return int(np.count_nonzero(~self.held_dofs))
 
     def dof_index(self) -> np.ndarray:
         """``(g, 3)``: each grain's dof indices (x, y, theta) among the free dofs, -1 where held."""
         index = np.full((self.n_grains, 3), -1, dtype=np.intp)
-        free = self.free
-        index[free] = 3 * np.arange(len(free))[:, None] + np.arange(3)
+        free = ~self.held_dofs
+        index[free] = np.arange(int(np.count_nonzero(free)))
         return index
 
-    def dof_names(self) -> list[str]:
-        """``x<i>``, ``y<i>``, ``theta<i>`` of every free grain, in dof order."""
-        return [f"{c}{i}" for i in self.free for c in ("x", "y", "theta")]
+    def dof_names(self, components: tuple[str, ...] = ("x", "y", "theta")) -> list[str]:
+        """``x<i>``, ``y<i>``, ``theta<i>`` of every dof that is not held, in dof order
+        (``components``: other names for the three, such as ``("Fx", "Fy", "M")`` for the forces)."""
+        free = ~self.held_dofs
+        return [f"{c}{i}" for i in range(self.n_grains) for j, c in enumerate(components) if free[i, j]]
 
     def with_forces(self, normal: np.ndarray, tangential: np.ndarray) -> Packing:
         """The same packing with other contact forces."""
         return Packing(self.x, self.y, self.radius, self.fixed, self.contacts, np.asarray(normal, float),
-                       np.asarray(tangential, float), self.source)
+                       np.asarray(tangential, float), self.source, self.held)
 
 
 def _first(mask: np.ndarray) -> int:

@@ -10,6 +10,7 @@ nowhere else.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from dataclasses import dataclass
 from typing import Any, Callable
@@ -65,6 +66,12 @@ class Setting:
     description: str
     default: Any
     check: Callable[[Any], str | None]
+    freeze: Callable[[Any], Any] | None = None
+
+    def frozen(self, value: Any) -> Any:
+        """``value`` as the hashable value a system is built and cached with (a list of
+        tables as a tuple of tuples), once it passed :attr:`check`."""
+        return value if self.freeze is None else self.freeze(value)
 
 
 @dataclass(frozen=True)
@@ -93,6 +100,9 @@ class SystemKind:
         anything is built (the size estimated before a run, :mod:`ncstab.studies.system_size`).
     size_setting
         The setting that sets the size (``grains``, ``links``), or None.
+    check_together
+        ``settings -> [(field, problem), ...]``: the checks that need several settings at
+        once (a contact naming a grain of the grain list), made once each passed its own.
     """
 
     name: str
@@ -105,6 +115,7 @@ class SystemKind:
     build: Callable[..., SystemDefinition]
     dof_count: Callable[..., int] = lambda **_settings: 2
     size_setting: str | None = None
+    check_together: Callable[..., list[tuple[str, str]]] | None = None
 
     def setting_names(self) -> tuple[str, ...]:
         return tuple(s.name for s in self.settings)
@@ -125,7 +136,9 @@ class SystemKind:
             if problem is not None:
                 raise ValueError(f"{setting.name} = {value!r} is not allowed for system {self.name!r}: give {problem}")
             out[setting.name] = value
-        return out
+        for field_name, problem in self.check_together(**out) if self.check_together is not None else ():
+            raise ValueError(f"system {self.name!r}, {field_name}: {problem}")
+        return {name: setting.frozen(out[name]) for name, setting in known.items()}
 
 
 def _diamond(reduction: str = "symmetric") -> SystemDefinition:
@@ -147,6 +160,72 @@ def _ring(grains: int):
 
         return assembled_ring(grains)
     return ring(grains)
+
+
+def _packing(file: str):
+    from ncstab.systems.packing_system import packing_system
+
+    return packing_system(file)
+
+
+def _packing_file(value: Any) -> str | None:
+    from ncstab.systems.packing_system import packing_file_problem
+
+    return packing_file_problem(value)
+
+
+def _grains(grain: tuple, contacts: tuple, rotations: bool = True):
+    from ncstab.systems.packing_system import assembled_packing
+    from ncstab.systems.user_grains import grain_packing
+
+    system = assembled_packing(grain_packing(grain, contacts, rotations))
+    return dataclasses.replace(system, name="grains", title=f"{len(grain)} grains given in the study file "
+                               f"({system.n_dof} dofs, {len(contacts)} contacts)",
+                               settings=(("contacts", contacts), ("grain", grain), ("rotations", rotations)))
+
+
+def _grain_list(value: Any) -> str | None:
+    return None if isinstance(value, (list, tuple)) and value else "a list of grain tables { x, y, radius, held }"
+
+
+def _contact_list(value: Any) -> str | None:
+    return None if isinstance(value, (list, tuple)) else "a list of grain index pairs such as [[0, 1], [1, 2]]"
+
+
+def _grains_together(grain, contacts, rotations=True) -> list[tuple[str, str]]:
+    from ncstab.systems.user_grains import grains_problems
+
+    thaw = [{"x": g[0], "y": g[1], "radius": g[2], "held": list(g[3])} if isinstance(g, tuple) else g for g in grain]
+    return grains_problems(thaw, [list(c) for c in contacts], rotations)
+
+
+def _frozen_grains(value):
+    from ncstab.systems.user_grains import freeze_grains
+
+    return value if value and isinstance(value[0], tuple) else freeze_grains(value)
+
+
+def _frozen_contacts(value):
+    from ncstab.systems.user_grains import freeze_contacts
+
+    return freeze_contacts(value)
+
+
+def _bars(joints: tuple, supports: Any = "ends", springs: Any = 1.0):
+    from ncstab.systems.user_bars import assembled_bars
+
+    return assembled_bars(joints, supports, springs)
+
+
+def _bars_together(joints, supports="ends", springs=1.0) -> list[tuple[str, str]]:
+    from ncstab.systems.user_bars import bars_problems
+
+    return bars_problems(list(joints), supports if supports == "ends" else list(supports),
+                         list(springs) if isinstance(springs, (list, tuple)) else springs)
+
+
+def _frozen_list(value):
+    return tuple(value) if isinstance(value, list) else value
 
 
 def _column(links: int):
@@ -203,6 +282,58 @@ SYSTEMS: dict[str, SystemKind] = {
         granular=False,
         own_laws=True,
         build=ziegler,
+    ),
+    "packing": SystemKind(
+        name="packing",
+        title="a packing file's grains and contacts, rotations included (docs/packing-paths.md)",
+        settings=(Setting("file", "a packing file, relative to the study file", None, _packing_file),),
+        parameter_specs=(),
+        shorthands=(),
+        granular=False,  # no secondary contacts: new contacts are not detected
+        own_laws=False,
+        build=_packing,
+        dof_count=lambda file, **_: _packing(file).n_dof,
+        size_setting="file",
+    ),
+    "grains": SystemKind(
+        name="grains",
+        title="grains given by centre and radius, and their contacts (docs/study-files.md)",
+        settings=(
+            Setting("grain", "the grains: a list of tables { x, y, radius, held }", None, _grain_list, _frozen_grains),
+            Setting("contacts", "the contacts: a list of grain index pairs [a, b], 0-based", None, _contact_list,
+                    _frozen_contacts),
+            Setting("rotations", "whether the grains rotate (false holds every theta)", True,
+                    lambda v: None if isinstance(v, bool) else "true or false"),
+        ),
+        parameter_specs=(),
+        shorthands=(),
+        granular=False,  # no secondary contacts: new contacts are not detected
+        own_laws=False,
+        build=_grains,
+        dof_count=lambda grain, contacts=(), rotations=True, **_: _grains(grain, contacts, rotations).n_dof,
+        check_together=_grains_together,
+    ),
+    "bars": SystemKind(
+        name="bars",
+        title="a chain of rigid bars given by its joints, rotational springs, axial dead load P",
+        settings=(
+            Setting("joints", "the joints' heights along the axis, from the base up (units a)", None,
+                    lambda v: None if isinstance(v, (list, tuple)) else "a list of heights", _frozen_list),
+            Setting("supports", "the joints held on the axis (0-based), or \"ends\": the first and the last",
+                    "ends", lambda v: None if isinstance(v, (list, tuple)) or v == "ends"
+                    else "a list of joint indices, or \"ends\"", _frozen_list),
+            Setting("springs", "each internal joint's spring stiffness (units C), or one for all", 1.0,
+                    lambda v: None if isinstance(v, (list, tuple, int, float)) and not isinstance(v, bool)
+                    else "a number or a list of numbers", _frozen_list),
+        ),
+        parameter_specs=(),
+        shorthands=(),
+        granular=False,
+        own_laws=True,
+        build=_bars,
+        dof_count=lambda joints, supports="ends", **_: len(joints) - len(
+            set((0, len(joints) - 1) if supports == "ends" else supports)),
+        check_together=_bars_together,
     ),
 }
 
