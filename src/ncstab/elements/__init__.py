@@ -16,6 +16,10 @@ arrays.  Nothing here is derived per system.
 * :mod:`ncstab.elements.bar_spring` -- a rotational spring between two rigid
   bars whose rise (sine of the bar angle) is linear in the dofs:
   q = asin(rise_b) - asin(rise_a); and the axial dead load of such bars.
+* :mod:`ncstab.elements.linear_spring` -- a rotational spring whose rotation is linear
+  in the dofs (the dofs are angles): q = c . u_e, J = c, H = 0.
+* :mod:`ncstab.elements.tip_load` -- a follower or dead load P at the tip of a chain of
+  bars given by their absolute angles (Ziegler's pendulum, Beck's column).
 
 Every kind offers the same element protocol to the assembly
 (:mod:`ncstab.operators.assembly`): ``names``, ``dofs`` ``(m, L)``, ``size``,
@@ -26,15 +30,21 @@ from ncstab.elements.bar_spring import BarSprings, bar_angles, shortening
 from ncstab.elements.branch import BranchElements, branch_kinematics
 from ncstab.elements.grain_contact import GrainContacts, grain_contact_kinematics
 from ncstab.elements.law_response import LawResponse, law_response
+from ncstab.elements.linear_spring import LinearSprings
+from ncstab.elements.tip_load import TIP_LOADS, TipLoad, tip_load_terms
 
 __all__ = [
     "BarSprings",
     "BranchElements",
     "GrainContacts",
     "LawResponse",
+    "LinearSprings",
+    "TIP_LOADS",
+    "TipLoad",
     "bar_angles",
     "branch_kinematics",
     "grain_contact_kinematics",
     "law_response",
     "shortening",
+    "tip_load_terms",
 ]

@@ -12,7 +12,9 @@ contact between rotating disks, ``GrainContacts``, whose w = rho_e^2 is its own;
 both give q = (l, alpha) -- alpha is beta for rotating disks -- with J and H),
 Q_e, D_e the law's response
 (:func:`ncstab.elements.law_response`), Q_ext the axial load per unit P
-(:func:`ncstab.elements.shortening`), and each closed secondary contact a
+(:func:`ncstab.elements.shortening`) or the tip load's (follower or dead,
+:func:`ncstab.elements.tip_load_terms`: dQ_ext/du as 2 x 2 blocks, not symmetric for a
+follower load), and each closed secondary contact a
 frictionless spring of energy w kappa g^2 / 2 (g = centre distance - 1):
 F += w kappa g grad g, K += w kappa (grad g grad g^T + g hess g).  Element
 matrices are scattered by their dof maps in one vectorised call, into a dense
@@ -28,7 +30,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sparse
 
-from ncstab.elements import BranchElements, branch_kinematics, law_response, shortening
+from ncstab.elements import BranchElements, branch_kinematics, law_response, shortening, tip_load_terms
 from ncstab.systems.assembled import AssembledSystem
 
 __all__ = ["AssembledState", "assemble", "energy_forms", "gap_candidates", "gap_elements"]
@@ -187,6 +189,12 @@ def assemble(
         R += load * dR_dload
         dofs_parts.append(bars.rise_dofs)
         block_parts.append(-load * stiffness)
+    if system.tip_load is not None:
+        vector, pairs, blocks = tip_load_terms(system.tip_load, u)
+        np.add.at(dR_dload, system.tip_load.dofs, -vector)
+        R += load * dR_dload
+        dofs_parts.append(pairs)
+        block_parts.append(-load * blocks)
     gaps = np.zeros(0)
     if closed is not None and len(closed):
         springs = gap_elements(system, closed)
@@ -221,8 +229,8 @@ def energy_forms(
     """psi^T K_int phi and psi^T K_load phi (K = K_int - P K_load), element by element.
 
     Each member contributes w [(J psi_e)^T D (J phi_e) + sum_c Q_c psi_e^T H_c phi_e]
-    and each bar cos(theta)^-3 (a . psi)(a . phi), computed from J phi_e and a . phi
-    directly: no cancellation between the entries of an assembled K (a column of
+    and each bar cos(theta)^-3 (a . psi)(a . phi) (a tip load: psi^T dQ_ext/du phi over its
+    blocks), computed from J phi_e and a . phi directly: no cancellation between the entries of an assembled K (a column of
     1,000 links has entries of order 6 and a critical eigenvalue of order 1e-10).
     Their ratio is the two-sided Rayleigh quotient of the pencil, stationary at
     the critical load (:func:`ncstab.paths.assembled_path.refine_critical_load`).
@@ -256,4 +264,7 @@ def energy_forms(
         b = np.einsum("bk,bk->b", bars.rise_signs, right[bars.rise_dofs])
         length = 1.0 if bars.lengths is None else bars.lengths
         outer += float(np.sum(length * (1.0 - r * r) ** -1.5 * a * b))
+    if system.tip_load is not None:  # psi^T (dQ_ext/du) phi, block by block
+        _, pairs, blocks = tip_load_terms(system.tip_load, u)
+        outer += float(np.einsum("ma,mab,mb->", left[pairs], blocks, right[pairs]))
     return inner, outer

@@ -66,7 +66,9 @@ def _indicators(point, definition, stored_K: bool):
         "hill": found["hill"], "d2W": found["d2W"], "mixed_control": value(found["det_SS"], found["log_det_SS"]),
         "negative_eigenvalues": float(negative_pivots(0.5 * (K + K.T))), "flutter": np.nan,
     }
-    if dense is not None and definition.masses is not None:
+    if "growth" in found:  # M(u) and C of the system's inertia (ncstab.paths.assembled_dynamics)
+        values["flutter"] = found["growth"]
+    elif dense is not None and definition.masses is not None:
         roots = np.sqrt(-np.linalg.eigvals(dense / definition.masses[:, None]).astype(complex))
         values["flutter"] = float(np.max(np.abs(roots.real)))
     return values, dense
@@ -164,6 +166,11 @@ def assembled_dataset(result: "AssembledPathResult") -> "xarray.Dataset":
                 values[c] = entry[suffix]
             data[f"{event}_{suffix}"] = (sweep_dims + dims, values.reshape(shape + values.shape[1:]),
                                          event_variable_attributes(event, suffix))
+    if getattr(definition, "inertia", None) is not None:  # omega of the critical pair at the onset
+        frequency = [o.events["flutter_onset"]["point"].indicators.get("frequency", np.nan)
+                     if "flutter_onset" in o.events else np.nan for o in outcomes]
+        data["flutter_onset_frequency"] = (sweep_dims, np.array(frequency, dtype=float).reshape(shape),
+                                           event_variable_attributes("flutter_onset", "frequency"))
     coords = _coordinates(result, length, None, 0)
     if not stored_K:
         coords.pop("i"), coords.pop("j")

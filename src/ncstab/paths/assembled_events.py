@@ -54,7 +54,7 @@ def _crossed_segment(trail: list[_Segment], step: _Segment, key: str, before: fl
     column of 2,000 links: the critical eigenvalue is 6e-12 x (1 - P / P1) against entries
     of K of order 6, within rounding for 10 % of P1 on either side).
     """
-    if key not in ("det", "det_SS", "hill"):
+    if key not in ("det", "det_SS", "hill", "divergence"):
         return step
     for segment in reversed([*trail, step]):
         raw = segment.start.raw if segment.start.raw is not None else segment.start.indicators
@@ -93,6 +93,8 @@ def _steady(stepper, p: Point, q: Point) -> dict:
                 b[key] = a[key]
                 if key == "det":
                     b["bordered"] = a["bordered"]
+    if "divergence" in b:  # the dynamic divergence test is det K_SS's sign, carried alike
+        b["divergence"] = b["det_SS"]
     return b
 
 
@@ -114,6 +116,10 @@ def _event_names(a: dict, b: dict) -> list[str]:
         names.append("hill_loss")
     if _changed(a, b, "secant"):
         names.append("turning_point")
+    if _changed(a, b, "onset"):  # a system with inertia (ncstab.paths.assembled_dynamics)
+        names.append("flutter_onset")
+    if _changed(a, b, "divergence"):
+        names.append("divergence")
     if "gap" in a and a["gap"] > 0 and b.get("gap", np.inf) < 0:
         names.append("secondary_contact")
     return names
@@ -121,4 +127,5 @@ def _event_names(a: dict, b: dict) -> list[str]:
 
 def _indicator_key(event: str) -> str:
     return {"bifurcation": "det", "limit_point": "det", "controllability_loss": "det_SS", "hill_loss": "hill",
-            "turning_point": "turning", "secondary_contact": "gap"}[event]
+            "turning_point": "turning", "secondary_contact": "gap", "flutter_onset": "onset",
+            "divergence": "divergence"}[event]

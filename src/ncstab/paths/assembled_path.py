@@ -9,6 +9,7 @@ import numpy as np
 from ncstab.operators.assembly import energy_forms, gap_candidates
 from ncstab.operators.sparse_indicators import critical_eigenvalue, determinant, hill_eigenvalue
 from ncstab.paths.assembled_control import StageControl, stage_control
+from ncstab.paths.assembled_dynamics import dynamic_indicators, has_dynamics
 from ncstab.paths.assembled_engine import GAP_REACH, MAX_LAMBDA_STEP, MAX_RELATIVE_MOVE, CaseRun, DomainError, Point
 from ncstab.paths import assembled_events
 from ncstab.paths.assembled_events import (
@@ -112,7 +113,8 @@ class Stepper:
         return z / np.linalg.norm(z)
 
     def indicators(self, p: Point) -> dict[str, float]:
-        """Signed indicators at p (tangent known): det K, det K_SS, the bordered det, Hill, dlambda/ds, gaps."""
+        """Signed indicators at p (tangent known): det K, det K_SS, the bordered det, Hill, dlambda/ds, gaps,
+        and the dynamic ones of a system with inertia (:mod:`ncstab.paths.assembled_dynamics`)."""
         K_SS, column = self.run.blocks(self.control, p.state, self.lam(p.y))
         sign, log = determinant(p.state.K)
         everything = self.m == self.run.n
@@ -126,6 +128,8 @@ class Stepper:
                "d2W": float(du @ dF / size) if size > 0 else np.nan}
         if is_trivial(self, p):  # signs exact where K's rounding hides them (a long straight column)
             trivial_path_signs(self, p, out, assembled_events.EIGENVALUE_NOISE)
+        if has_dynamics(self.run.system):  # M s^2 + C s + K: flutter onset, divergence (det K_SS)
+            out.update(dynamic_indicators(self.run.system, p.u, p.state.K), divergence=out["det_SS"])
         if self.run.system.grains is not None:
             pairs, gaps = gap_candidates(self.run.system, p.u, GAP_REACH)
             closed = {tuple(x) for x in self.run.closed.tolist()}
@@ -337,7 +341,8 @@ def follow_case(run: CaseRun, programme: LoadingProgramme, values: dict[str, flo
             if what == "switch":
                 switched = True
                 e.tangent = _switch_direction(stepper, e, sense_switch)
-                e.indicators = {**_quiet(e.indicators, ("det", "det_SS", "bordered", "hill", "secant")), SWITCHED: True}
+                e.indicators = {**_quiet(e.indicators, ("det", "det_SS", "bordered", "hill", "secant", "divergence")),
+                                SWITCHED: True}
             else:  # a secondary contact closes: its spring acts from here on
                 pairs, gaps = e.indicators["gap_pairs"], e.indicators["gap_values"]
                 run.closed = np.concatenate([run.closed, pairs[gaps <= 1e-9 * max(1.0, np.max(np.abs(e.u)))]])

@@ -13,7 +13,10 @@ and attributes as the compiled engine's Dataset, and these differences:
   1e600): ``det_K_sign`` and ``log_abs_det_K`` give it whole, ``det_K`` is their
   value where it fits in float64 (+-inf where it does not);
 * ``flutter`` is computed up to :data:`STORED_K_LIMIT` dofs (dense spectrum), NaN
-  above; ``d2W`` is du . K du / (|K du| |du|) along the path tangent.
+  above: with a diagonal M, or with the M(u) and C of the system's ``inertia``
+  (:mod:`ncstab.paths.assembled_dynamics`, which also gives the events ``flutter_onset``
+  and ``divergence`` and ``flutter_onset_frequency``); ``d2W`` is du . K du / (|K du| |du|)
+  along the path tangent.
 """
 
 from __future__ import annotations

@@ -10,12 +10,16 @@ expression.  An :class:`AssembledSystem` holds
   :class:`~ncstab.elements.GrainContacts` between rotating disks; each
   member's own ``alpha0``, and the stored forces they carry at u = 0)
   and/or its rotational springs between bars
-  (:class:`~ncstab.elements.BarSprings`, with their own law);
+  (:class:`~ncstab.elements.BarSprings`, with their own law), or springs whose
+  rotation is linear in angle dofs (:class:`~ncstab.elements.LinearSprings`, Ziegler's chain);
 * its grains' positions, affine in the dofs (``grain_origin + grain_matrix
   u[grain_dofs]``), from which the unilateral gaps between grains that are not
   in contact are found by a neighbour search (secondary contacts);
-* an axial dead load on its bars (``P``, the work P sum (1 - cos theta_i));
-* the diagonal of its mass matrix, or none.
+* an axial dead load on its bars (``P``, the work P sum (1 - cos theta_i)), or a
+  follower or dead tip load on a chain of bars (:class:`~ncstab.elements.TipLoad`);
+* the diagonal of its mass matrix, or a configuration-dependent mass matrix M(u) and a
+  damping matrix C (``inertia``: :class:`~ncstab.systems.assembled_chain.ChainInertia`),
+  or none.
 
 It has the surface of a :class:`~ncstab.systems.SystemDefinition` that the
 study, Dataset and figure layers read (``dofs``, ``forces``, ``families``,
@@ -34,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from ncstab.elements import BarSprings, BranchElements, GrainContacts
+from ncstab.elements import BarSprings, BranchElements, GrainContacts, LinearSprings, TipLoad
 from ncstab.systems.definition import FamilyNames, SystemUnits
 
 __all__ = ["AssembledSystem", "AxialLoad", "ElementFamily", "GrainPositions", "is_assembled"]
@@ -107,8 +111,14 @@ class AssembledSystem:
         Grain centres (for the gaps of secondary contacts), or ``None``.
     axial_load
         The axial dead load, or ``None``.
+    tip_load
+        A follower or dead tip load on a chain of bars, or ``None`` (not with ``axial_load``).
     masses
         Diagonal of M ``(n,)``, or ``None``.
+    inertia
+        M(u) and C of a small system (``mass(u)``, ``damping()``, ``pencil(u, K)`` and
+        ``for_values(values)``: :class:`~ncstab.systems.assembled_chain.ChainInertia`), or
+        ``None``; :meth:`for_values` gives it the case's parameter values.
     system_parameters
         The system's own parameters (:class:`~ncstab.laws.ParameterSpec`), set per case.
     spring_rest
@@ -133,11 +143,13 @@ class AssembledSystem:
     forces: tuple[str, ...]
     contacts: BranchElements | GrainContacts | None = None
     contact_alpha0: np.ndarray | None = None
-    springs: BarSprings | None = None
+    springs: BarSprings | LinearSprings | None = None
     spring_law: Any = None
     grains: GrainPositions | None = None
     axial_load: AxialLoad | None = None
     masses: np.ndarray | None = None
+    tip_load: TipLoad | None = None
+    inertia: Any = None
     units: SystemUnits = field(default_factory=SystemUnits)
     settings: tuple[tuple[str, Any], ...] = ()
     reference: str = ""
@@ -154,6 +166,8 @@ class AssembledSystem:
         system = self
         if self.case_system is not None and law is not None:
             system = self.case_system(self, law, values)
+        if system.inertia is not None:
+            system = dataclasses.replace(system, inertia=system.inertia.for_values(values))
         if system.spring_rest is None or system.springs is None:
             return system
         rest = system.spring_rest(values)
@@ -167,6 +181,10 @@ class AssembledSystem:
             raise ValueError(f"system {self.name!r}: give n >= 1 dofs and as many forces")
         if self.contacts is None and self.springs is None:
             raise ValueError(f"system {self.name!r}: give contacts or springs")
+        if self.axial_load is not None and self.tip_load is not None:
+            raise ValueError(f"system {self.name!r}: give an axial load or a tip load, not both")
+        if self.masses is not None and self.inertia is not None:
+            raise ValueError(f"system {self.name!r}: give the diagonal masses or the inertia, not both")
         for label, elements in (("contact", self.contacts), ("spring", self.springs)):
             if elements is not None and elements.size and (elements.dofs.min() < 0 or elements.dofs.max() >= n):
                 bad = int(np.flatnonzero((elements.dofs < 0).any(1) | (elements.dofs >= n).any(1))[0])
@@ -201,23 +219,29 @@ class AssembledSystem:
     parameter_specs = parameters
 
     @property
-    def load(self) -> AxialLoad | None:
-        return self.axial_load
+    def load(self) -> AxialLoad | TipLoad | None:
+        return self.axial_load if self.axial_load is not None else self.tip_load
 
     @property
     def load_parameter(self) -> str | None:
-        return None if self.axial_load is None else self.axial_load.parameter
+        return None if self.load is None else self.load.parameter
 
     @property
     def mass(self):
-        """A marker: not ``None`` where the system has inertia (M = diag(:attr:`masses`))."""
+        """A marker: not ``None`` where the system has inertia (M = diag(:attr:`masses`), or
+        :attr:`inertia`'s M(u))."""
+        if self.inertia is not None:
+            return ("matrix",)
         return None if self.masses is None else ("diagonal",)
 
-    damping = None
+    @property
+    def damping(self):
+        """A marker: not ``None`` where the system has a damping matrix (:attr:`inertia`'s C)."""
+        return None if self.inertia is None else ("matrix",)
 
     @property
     def has_inertia(self) -> bool:
-        return self.masses is not None
+        return self.masses is not None or self.inertia is not None
 
     @property
     def gaps(self) -> tuple[str, ...]:

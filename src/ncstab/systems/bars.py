@@ -25,6 +25,15 @@ stiffness, :data:`ncstab.laws.spring.LINEAR_SPRING`) and a load parameter P.
   K_follower = [[2 - P, P - 1], [-1, 1]] (det K = 1: no divergence, flutter
   at (7/2 - sqrt 2) k/l for m1 = 2 m2) and K_dead = [[2 - P, -1], [-1, 1 - P]]
   (det K = P^2 - 3P + 1: divergence at (3 - sqrt 5)/2).
+  With ``links = n`` it is the chain of n such bars (the discretised Beck column as n
+  grows): springs k at the base (k phi1) and at every joint (k (phi_{i+1} - phi_i)),
+  a point mass m1 at every joint between two bars and m2 at the tip, a dashpot b1 at
+  the base and b2 at every other joint (n = 2: Ziegler's pendulum).  With l = 1, the
+  kinetic energy (1/2) sum_k m_k |v_k|^2 of the joints gives
+  M_ij = cos(phi_i - phi_j) sum_{k >= max(i, j)} m_k, the dissipation
+  (1/2) [b1 phi1'^2 + b2 sum_{i>1} (phi_i' - phi_{i-1}')^2] gives C, and the tip load's
+  virtual work gives Q_i = -sin(phi_n - phi_i) (follower) or sin(phi_i) (dead,
+  from the potential P sum cos phi_i).
 """
 
 from __future__ import annotations
@@ -43,7 +52,9 @@ from ncstab.systems.definition import (
     dof_symbols,
 )
 
-__all__ = ["COLUMN_REFERENCE", "COLUMN_UNITS", "IMPERFECTION_SPEC", "ZIEGLER_LOADS", "column", "imperfect_rises", "ziegler"]
+__all__ = ["CHAIN_PARAMETERS", "COLUMN_REFERENCE", "COLUMN_UNITS", "IMPERFECTION_SPEC", "ZIEGLER_LOADS",
+           "ZIEGLER_REFERENCE", "ZIEGLER_UNITS", "chain_parameters", "column", "imperfect_rises", "ziegler",
+           "ziegler_member_names", "ziegler_title"]
 
 #: The two loads of Ziegler's pendulum.
 ZIEGLER_LOADS = ("follower", "dead")
@@ -133,45 +144,85 @@ ZIEGLER_PARAMETERS = (
     _nonnegative("b1", "dashpot at the base joint / sqrt(k m l^2)"),
     _nonnegative("b2", "dashpot at the middle joint / sqrt(k m l^2)"),
 )
+#: The same parameters of a chain of more than two bars (the defaults lump a uniform column's
+#: mass: 2 at every joint between two bars, half of it at the tip).
+CHAIN_PARAMETERS = (
+    _positive("m1", "point mass at every joint between two bars / m", 2.0),
+    _positive("m2", "point mass at the tip / m", 1.0),
+    _nonnegative("b1", "dashpot at the base joint / sqrt(k m l^2)"),
+    _nonnegative("b2", "dashpot at every joint between two bars / sqrt(k m l^2)"),
+)
+ZIEGLER_UNITS = SystemUnits(
+    displacement="rad",
+    displacement_description="absolute angle of each bar from the vertical",
+    force="1",
+    force_description="external moment conjugate to each bar angle / k",
+    work_description="work of the external moments and of P, in units of k",
+    force_unit="k",
+)
+ZIEGLER_REFERENCE = ("Ziegler (1952), Z. Angew. Math. Phys. 3, 96-119; Kirillov (2013), Nonconservative "
+                     "Stability Problems of Modern Physics")
 
 
-def ziegler(load: str = "follower") -> SystemDefinition:
-    """Ziegler's two-bar pendulum with a follower or a dead tip load P."""
+def chain_parameters(links: int) -> tuple[ParameterSpec, ...]:
+    """Ziegler's parameters (two bars) or the chain's (more): the same names and defaults."""
+    return ZIEGLER_PARAMETERS if links == 2 else CHAIN_PARAMETERS
+
+
+def ziegler_member_names(links: int) -> tuple[str, ...]:
+    """The springs' names: ``base``, ``middle`` (two bars) or ``base``, ``joint1`` .. ``joint{n-1}``."""
+    return ("base", "middle") if links == 2 else ("base", *(f"joint{j}" for j in range(1, links)))
+
+
+def ziegler_title(links: int, load: str) -> str:
+    return (f"Ziegler's two-bar pendulum, {load} tip load" if links == 2
+            else f"Ziegler's chain of {links} rigid bars, {load} tip load")
+
+
+def ziegler(load: str = "follower", links: int = 2) -> SystemDefinition:
+    """Ziegler's pendulum of ``links`` rigid bars (default 2) with a follower or a dead tip load P."""
     if load not in ZIEGLER_LOADS:
         raise ValueError(f"load = {load!r} is not allowed; allowed: {', '.join(ZIEGLER_LOADS)}")
-    phi1, phi2 = dof_symbols(("phi1", "phi2"))
-    m1, m2, b1, b2 = (p.symbol for p in ZIEGLER_PARAMETERS)
+    if isinstance(links, bool) or not isinstance(links, int) or links < 2:
+        raise ValueError(f"Ziegler's chain needs links >= 2 (a whole number), got {links!r}")
+    n = links
+    dofs = tuple(f"phi{i}" for i in range(1, n + 1))
+    phi = dof_symbols(dofs)
+    parameters = chain_parameters(n)
+    m1, m2, b1, b2 = (p.symbol for p in parameters)
     springs = InteractionFamily(
         name="springs",
         kind="spring",
-        members=("base", "middle"),
-        variables=((phi1,), (phi2 - phi1,)),
+        members=ziegler_member_names(n),
+        variables=((phi[0],), *((phi[j] - phi[j - 1],) for j in range(1, n))),
         law=LINEAR_SPRING,
     )
-    if load == "follower":  # along the second bar: dW = -P l sin(phi2 - phi1) dphi1
-        vector = (-sp.sin(phi2 - phi1), sp.Integer(0))
-    else:  # vertical: dW = P l (sin phi1 dphi1 + sin phi2 dphi2)
-        vector = (sp.sin(phi1), sp.sin(phi2))
-    coupling = m2 * sp.cos(phi2 - phi1)
+    if load == "follower":  # along the last bar: dW = -P l sum_i sin(phi_n - phi_i) dphi_i
+        vector = (*(-sp.sin(phi[-1] - phi[i]) for i in range(n - 1)), sp.Integer(0))
+    else:  # vertical: dW = P l sum_i sin(phi_i) dphi_i
+        vector = tuple(sp.sin(p) for p in phi)
+    tail = [(n - 1 - k) * m1 + m2 for k in range(n)]  # the masses at or beyond joint k + 1 (0-based bar k)
+    mass = tuple(tuple(tail[i] if i == j else tail[max(i, j)] * sp.cos(phi[max(i, j)] - phi[min(i, j)])
+                       for j in range(n)) for i in range(n))
+    dashpots = [b1, *([b2] * (n - 1))]  # at the base, then between bars k - 1 and k
+    damping = [[sp.Integer(0)] * n for _ in range(n)]
+    for k, b in enumerate(dashpots):
+        damping[k][k] += b
+        if k:
+            damping[k - 1][k - 1] += b
+            damping[k - 1][k] -= b
+            damping[k][k - 1] -= b
     return SystemDefinition(
         name="ziegler",
-        title=f"Ziegler's two-bar pendulum, {load} tip load",
-        dofs=("phi1", "phi2"),
-        forces=("M1", "M2"),
+        title=ziegler_title(n, load),
+        dofs=dofs,
+        forces=tuple(f"M{i}" for i in range(1, n + 1)),
         families=(springs,),
-        parameters=ZIEGLER_PARAMETERS,
+        parameters=parameters,
         load=LoadDefinition("P", load, vector, units="k/l", description=f"{load} tip load P (units k/l)"),
-        mass=((m1 + m2, coupling), (coupling, m2)),
-        damping=((b1 + b2, -b2), (-b2, b2)),
-        units=SystemUnits(
-            displacement="rad",
-            displacement_description="absolute angle of each bar from the vertical",
-            force="1",
-            force_description="external moment conjugate to each bar angle / k",
-            work_description="work of the external moments and of P, in units of k",
-            force_unit="k",
-        ),
-        settings=(("load", load),),
-        reference="Ziegler (1952), Z. Angew. Math. Phys. 3, 96-119; Kirillov (2013), Nonconservative Stability Problems of Modern Physics",
+        mass=mass,
+        damping=tuple(tuple(row) for row in damping),
+        units=ZIEGLER_UNITS,
+        settings=(("load", load),) if n == 2 else (("links", n), ("load", load)),
+        reference=ZIEGLER_REFERENCE,
     )
-

@@ -1,7 +1,7 @@
 """The systems ncstab ships, by name (docs/models.md).
 
 Each entry says which structural *settings* build the system (``reduction``
-of the diamond, ``grains`` of a ring, ``links`` of a column, ``load`` of
+of the diamond, ``grains`` of a ring, ``links`` of a column, ``load`` and ``links`` of
 Ziegler's pendulum: they fix its dofs and cannot be swept), which numeric
 *parameters* it has (``alpha0``, Ziegler's masses and dashpots: sweepable),
 and builds its :class:`~ncstab.systems.SystemDefinition`.  Add a system here,
@@ -228,6 +228,14 @@ def _frozen_list(value):
     return tuple(value) if isinstance(value, list) else value
 
 
+def _ziegler(load: str = "follower", links: int = 2):
+    if isinstance(links, int) and links > DERIVED_DOFS_LIMIT:
+        from ncstab.systems.assembled_chain import assembled_ziegler
+
+        return assembled_ziegler(links, load)
+    return ziegler(load, links)
+
+
 def _column(links: int):
     if isinstance(links, int) and links - 1 > DERIVED_DOFS_LIMIT:
         from ncstab.systems.assembled_builders import assembled_column
@@ -275,13 +283,16 @@ SYSTEMS: dict[str, SystemKind] = {
     ),
     "ziegler": SystemKind(
         name="ziegler",
-        title="Ziegler's two-bar pendulum, follower or dead tip load P",
-        settings=(Setting("load", "the tip load: follower or dead", "follower", _one_of(ZIEGLER_LOADS)),),
+        title="Ziegler's pendulum: a chain of n rigid bars (two by default), follower or dead tip load P",
+        settings=(Setting("load", "the tip load: follower or dead", "follower", _one_of(ZIEGLER_LOADS)),
+                  Setting("links", "the number of rigid bars, n >= 2 (2: Ziegler's pendulum)", 2, _whole_at_least(2))),
         parameter_specs=ZIEGLER_PARAMETERS,
         shorthands=(("masses", ("m1", "m2")), ("damping", ("b1", "b2"))),
         granular=False,
         own_laws=True,
-        build=ziegler,
+        build=_ziegler,
+        dof_count=lambda links=2, **_: int(links),
+        size_setting="links",
     ),
     "packing": SystemKind(
         name="packing",
