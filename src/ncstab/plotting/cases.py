@@ -13,7 +13,7 @@ from ncstab.plotting.style import EVENT_MARKERS, format_parameter, law_display_n
 __all__ = ["Case", "CaseEvent", "path_cases"]
 
 #: Per-step variables read for each case (missing ones are left NaN).
-_STEP_VARIABLES = ("alpha", "l", "s", "stage", "N", "det_K", "hill", "d2W")
+_STEP_VARIABLES = ("alpha", "l", "s", "stage", "N", "det_K", "hill", "d2W", "load")
 
 
 @dataclass(frozen=True)
@@ -30,6 +30,8 @@ class CaseEvent:
         Generalized displacements and forces at the event, shape (2,).
     K
         Tangent operator at the event, shape (2, 2) (NaN if not stored).
+    load
+        The load parameter at the event (NaN for a system without one).
     """
 
     name: str
@@ -38,6 +40,7 @@ class CaseEvent:
     u: np.ndarray
     F: np.ndarray
     K: np.ndarray
+    load: float = np.nan
 
 
 @dataclass(frozen=True)
@@ -60,6 +63,8 @@ class Case:
         Shape (n, 2): Delta*, F* for dof 1 and 2.
     alpha, l, s, stage, N, det_K, hill, d2W
         Shape (n,).
+    load
+        Shape (n,): the load parameter (NaN for a system without one).
     events
         Located events of this case, by name (events not found are absent).
     """
@@ -78,6 +83,7 @@ class Case:
     det_K: np.ndarray
     hill: np.ndarray
     d2W: np.ndarray
+    load: np.ndarray
     events: dict[str, CaseEvent] = field(default_factory=dict)
 
     @property
@@ -154,6 +160,7 @@ def _case_event(
         u=matrix("u", (2,)),
         F=matrix("F", (2,)),
         K=matrix("K", (2, 2)),
+        load=scalar("load"),
     )
 
 
@@ -196,6 +203,7 @@ def path_cases(dataset: xr.Dataset) -> list[Case]:
             "u": _values(dataset, f"{event}_u", dims, ("dof",)),
             "F": _values(dataset, f"{event}_F", dims, ("dof",)),
             "K": _values(dataset, f"{event}_K", dims, ("i", "j")),
+            "load": _values(dataset, f"{event}_load", dims, ()),
         }
     fixed = {
         key[len("parameter_") :]: value

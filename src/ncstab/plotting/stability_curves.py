@@ -133,6 +133,37 @@ STABILITY_PANELS: tuple[tuple[str, Callable[[Case, CaseEvent], float]], ...] = (
 )
 
 
+def _spread(values: np.ndarray) -> float:
+    finite = values[np.isfinite(values)]
+    return float(np.ptp(finite)) if finite.size else 0.0
+
+
+def _along_load(dataset: xr.Dataset, cases) -> bool:
+    """Whether the indicators are drawn against the load parameter: a system that has one
+    (Ziegler's pendulum, a column) whose paths move it while the first dof stays put (a
+    trivial path: Ziegler's straight pendulum up to its flutter load), where an axis of
+    displacements would be a single point."""
+    if "load" not in dataset or not cases:
+        return False
+    return (any(_spread(case.load) > 0 for case in cases)
+            and all(_spread(case.u[:, 0]) <= 1e-12 * max(1.0, _spread(case.load)) for case in cases))
+
+
+def _displacement_axis(dataset: xr.Dataset) -> tuple[str, str]:
+    """The x axis of the first dof, as (symbol, label): the seed's Delta1* for a granular
+    system, else the dof's name and units (``w1`` of a column)."""
+    dofs = [str(d) for d in dataset["dof"].values] if "dof" in dataset.coords else []
+    if not dofs or dofs[0] == "D1":
+        return r"$\Delta_1^*$", AXIS_LABELS["D1"]
+    name = dofs[0]
+    units = str(dataset["u"].attrs.get("units", "")) if "u" in dataset else ""
+    stem = name.rstrip("0123456789")
+    index = name[len(stem):]
+    greek = {"phi": r"\phi", "theta": r"\theta"}.get(stem, stem)
+    symbol = f"${greek}_{{{index}}}$" if index and len(stem) > 0 else name
+    return symbol, symbol + (f" ({units})" if units not in ("", "1") else "")
+
+
 def stability_curves_figure(dataset: xr.Dataset, figure: Figure | None = None) -> Figure:
     """Three stacked panels against Delta1*: det K, the smallest eigenvalue of K_sym, d2W.
 
@@ -145,20 +176,24 @@ def stability_curves_figure(dataset: xr.Dataset, figure: Figure | None = None) -
         panels = fig.subplots(len(STABILITY_PANELS), 1, sharex=True)
         legend = context.legend()
         listed: set[int] = set()
+        along_load = _along_load(dataset, context.cases)
         for axes, (name, at_event) in zip(panels, STABILITY_PANELS):
             drawn = False
             for k, case in enumerate(context.cases):
                 values = getattr(case, name)
                 if not np.isfinite(values).any():
                     continue
-                x, y = d2w_line(case) if name == "d2W" else (case.u[:, 0], values)
+                if along_load:
+                    x, y = case.load, (d2w_line(case)[1] if name == "d2W" else values)
+                else:
+                    x, y = d2w_line(case) if name == "d2W" else (case.u[:, 0], values)
                 (line,) = axes.plot(x, y, label=case.label, gid=f"path:{case.label}",
                                     **context.path_style(k, overlaid=False))
                 if k not in listed:
                     legend.curve(line, context.labels[k])
                     listed.add(k)
-                mark_events(axes, context, legend, k,
-                            lambda e, case=case, at_event=at_event: (e.u[0], at_event(case, e)))
+                mark_events(axes, context, legend, k, lambda e, case=case, at_event=at_event:
+                            (e.load if along_load else e.u[0], at_event(case, e)))
                 drawn = True
             axes.set_ylabel(PANEL_LABELS[name])
             if name == "det_K" and drawn:
@@ -176,9 +211,16 @@ def stability_curves_figure(dataset: xr.Dataset, figure: Figure | None = None) -
                 axes.set_yticks([])
                 axes.grid(False, axis="y")
         if not listed:
-            set_limits(panels[-1], [case.u[:, 0] for case in context.cases], [])
-        panels[-1].set_xlabel(AXIS_LABELS["D1"])
+            set_limits(panels[-1], [case.load if along_load else case.u[:, 0] for case in context.cases], [])
+        if along_load:
+            name = str(dataset.attrs.get("load_parameter", "") or "P")
+            units = str(dataset["load"].attrs.get("units", ""))
+            symbol, label = f"${name}$", f"load ${name}$" + (f" ({units})" if units not in ("", "1") else "")
+        else:
+            symbol, label = _displacement_axis(dataset)
+        panels[-1].set_xlabel(label)
+        title = figure_title(dataset, "stability", width=80).replace(r"$\Delta_1^*$", symbol)
         fig.align_ylabels(panels)
-        fig.suptitle(figure_title(dataset, "stability", width=80), fontsize=10)
+        fig.suptitle(title, fontsize=10)
         legend.draw(fig, panels[0], place="below")  # the right side would collide with the title
     return fig

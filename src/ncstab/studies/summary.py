@@ -25,6 +25,10 @@ LINE_WIDTH = 100
 MAX_LISTED_VALUES = 8
 
 
+#: Systems whose grains can meet in new (secondary) contacts: ``info`` says how they were treated.
+GAP_SYSTEMS = ("diamond", "ring")
+
+
 def _number(value: Any) -> str:
     """A number to 6 significant digits (``0.785398``, ``2``, ``-7.58352e-14``)."""
     return f"{float(value):.6g}"
@@ -158,10 +162,9 @@ def archive_summary(dataset: Any, path: str | os.PathLike[str]) -> list[str]:
     study = f"study: {attrs.get('study_name', '?')} -- {attrs.get('study_description', '')}".rstrip(" -")
     lines += textwrap.wrap(" ".join(study.split()), LINE_WIDTH, initial_indent="  ", subsequent_indent="    ")
     lines.append(_fit(f"  created {attrs.get('created', '?')} with ncstab {attrs.get('ncstab_version', '?')}"))
-    lines.append(_fit(
-        f"  system: {attrs.get('system', '?')} (normal {attrs.get('normal', '?')}, secondary contacts "
-        f"{attrs.get('secondary_contacts', '?')}), forces in units of {attrs.get('force_unit', '?')}"
-    ))
+    contacts = (f" (normal {attrs.get('normal', '?')}, secondary contacts {attrs.get('secondary_contacts', '?')})"
+                if attrs.get("system") in GAP_SYSTEMS else "")  # the others have no new contacts to meet
+    lines.append(_fit(f"  system: {attrs.get('system', '?')}{contacts}, forces in units of {attrs.get('force_unit', '?')}"))
     for name in [d for d in dataset["status"].dims if d != "law"]:
         lines.append(_fit(f"  sweep {name}: {swept_values(dataset[name].values)}"))
     fixed = {k[len("parameter_"):]: v for k, v in attrs.items() if k.startswith("parameter_")}
