@@ -8,8 +8,8 @@ the functions of the derived route (:mod:`ncstab.operators.dynamics`: the compan
 matrix's eigenvalues, one implementation) on the system's ``pencil`` (the same polynomial,
 a well-conditioned M).  From them:
 
-* ``growth`` = max Re s (:func:`~ncstab.operators.dynamics.flutter_indicator`): the
-  Dataset's ``flutter``;
+* ``growth`` = max Re s (what :func:`~ncstab.operators.dynamics.flutter_indicator` gives, taken
+  from the roots already computed): the Dataset's ``flutter``;
 * ``onset`` = level - max {Re s : |Im s| > noise}, noise = :data:`GROWTH_NOISE` max(1, |s|_max),
   level = noise for an undamped system (C = 0) and 0 for a damped one: > 0 while no
   oscillating root grows, < 0 past a flutter onset (a complex pair crossed into Re s > 0).  Its sign change is the ``flutter_onset`` event, located by bisection like every
@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ncstab.operators.dynamics import critical_frequency, dynamic_spectrum, flutter_indicator
+from ncstab.operators.dynamics import critical_frequency, dynamic_spectrum
 
 __all__ = ["GROWTH_NOISE", "dynamic_indicators", "has_dynamics"]
 
@@ -63,6 +63,6 @@ def dynamic_indicators(system, u: np.ndarray, K) -> dict[str, float]:
     level = noise if damping is None else 0.0  # a damped system's roots are simple: Re s exact to rounding
     return {
         "onset": float(level - oscillating.max()) if oscillating.size else noise,
-        "growth": float(flutter_indicator(M, damping, stiffness)),
+        "growth": float(roots.real.max()),  # flutter_indicator's max Re s, of the roots already at hand
         "frequency": float(critical_frequency(M, damping, stiffness)),
     }

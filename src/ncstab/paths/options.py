@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -182,7 +183,8 @@ class SystemSpec:
             )
         if self.normal not in NORMAL_MODES:
             raise ValueError(f"normal = {self.normal!r} is not allowed; allowed: {', '.join(NORMAL_MODES)}")
-        SYSTEMS[self.name].check_settings(self.given_settings)
+        # checked once (a grain list's geometry is checked here), and kept: ``settings``
+        self.__dict__["settings"] = SYSTEMS[self.name].check_settings(self.given_settings)
         if self.normal == "rigid" and not self.is_reduced_diamond:
             raise ValueError(
                 "normal = 'rigid' (the pure-shear limit, seed Eq. 60-68) is defined for the reduced "
@@ -197,9 +199,9 @@ class SystemSpec:
                   "joints": self.joints, "supports": self.supports, "springs": self.springs}
         return {k: v for k, v in values.items() if v is not None}
 
-    @property
+    @functools.cached_property
     def settings(self) -> dict[str, object]:
-        """Every structural setting of the system, defaults included."""
+        """Every structural setting of the system, defaults included (checked when the spec is made)."""
         from ncstab.systems import SYSTEMS
 
         return SYSTEMS[self.name].check_settings(self.given_settings)

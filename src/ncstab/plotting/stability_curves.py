@@ -149,19 +149,18 @@ def _along_load(dataset: xr.Dataset, cases) -> bool:
             and all(_spread(case.u[:, 0]) <= 1e-12 * max(1.0, _spread(case.load)) for case in cases))
 
 
-def _displacement_axis(dataset: xr.Dataset) -> tuple[str, str]:
-    """The x axis of the first dof, as (symbol, label): the seed's Delta1* for a granular
-    system, else the dof's name and units (``w1`` of a column)."""
-    dofs = [str(d) for d in dataset["dof"].values] if "dof" in dataset.coords else []
-    if not dofs or dofs[0] == "D1":
+def _x_axis(dataset: xr.Dataset, along_load: bool) -> tuple[str, str]:
+    """The x axis as (its name in the title, its label): the seed's Delta1* for a granular
+    system's D1, else the load or the first dof labelled as the model path figures label them
+    (:meth:`~ncstab.plotting.model_paths.PathAxes.label`: ``load P (k/l)``, ``w1 (dimensionless)``)."""
+    from ncstab.plotting.model_paths import PathAxes
+
+    first = str(dataset["dof"].values[0]) if "dof" in dataset.coords else "D1"
+    if not along_load and first == "D1":
         return r"$\Delta_1^*$", AXIS_LABELS["D1"]
-    name = dofs[0]
-    units = str(dataset["u"].attrs.get("units", "")) if "u" in dataset else ""
-    stem = name.rstrip("0123456789")
-    index = name[len(stem):]
-    greek = {"phi": r"\phi", "theta": r"\theta"}.get(stem, stem)
-    symbol = f"${greek}_{{{index}}}$" if index and len(stem) > 0 else name
-    return symbol, symbol + (f" ({units})" if units not in ("", "1") else "")
+    x = ("load", None) if along_load else ("u", first)
+    name = str(dataset.attrs.get("load_parameter", "P")) if along_load else first
+    return name, PathAxes(x, x).label(dataset, "x")
 
 
 def stability_curves_figure(dataset: xr.Dataset, figure: Figure | None = None) -> Figure:
@@ -212,12 +211,7 @@ def stability_curves_figure(dataset: xr.Dataset, figure: Figure | None = None) -
                 axes.grid(False, axis="y")
         if not listed:
             set_limits(panels[-1], [case.load if along_load else case.u[:, 0] for case in context.cases], [])
-        if along_load:
-            name = str(dataset.attrs.get("load_parameter", "") or "P")
-            units = str(dataset["load"].attrs.get("units", ""))
-            symbol, label = f"${name}$", f"load ${name}$" + (f" ({units})" if units not in ("", "1") else "")
-        else:
-            symbol, label = _displacement_axis(dataset)
+        symbol, label = _x_axis(dataset, along_load)
         panels[-1].set_xlabel(label)
         title = figure_title(dataset, "stability", width=80).replace(r"$\Delta_1^*$", symbol)
         fig.align_ylabels(panels)

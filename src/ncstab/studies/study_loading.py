@@ -159,6 +159,7 @@ def loading_section(
     definition = system.definition
     dofs, forces, load = definition.dofs, definition.forces, definition.load_parameter
     others = getattr(definition, "hold_other_forces", False)  # a packing: uncontrolled forces held
+    held = dict(getattr(definition, "held", ()))  # quantities the system holds (a grain's, a support's)
     clean: list[dict[str, Any]] = []
     dynamic = None
     before = len(errors)
@@ -176,7 +177,7 @@ def loading_section(
         stage, checkable = read_stage(raw, prefix, errors, references, forces)
         if not checkable:
             continue
-        if system.name in ("grains", "bars") and _held_controls(stage, prefix, system, errors):
+        if held and _held_controls(stage, prefix, held, errors):
             continue
         try:  # one stage at a time, so that every stage's errors are reported
             parse_programme([stage], dofs, forces, load, others)
@@ -198,21 +199,15 @@ def loading_section(
         return None, references
 
 
-def _held_controls(stage: Mapping[str, Any], prefix: str, system: SystemSpec, errors: FieldErrors) -> bool:
-    """Report each quantity of a stage that a grain of ``[system] grain`` or a support of
-    ``[system] supports`` holds (a dof both fixed and driven); whether there was one."""
-    from ncstab.systems.user_bars import supported_quantity_problem
-    from ncstab.systems.user_grains import held_quantity_problem
-
+def _held_controls(stage: Mapping[str, Any], prefix: str, held: Mapping[str, str], errors: FieldErrors) -> bool:
+    """Report each quantity of a stage that the system holds (a dof both fixed and driven,
+    :attr:`~ncstab.systems.assembled.AssembledSystem.held`); whether there was one."""
     found = False
     for table in ("hold", "drive"):
         for name in stage.get(table) or {}:
-            if system.name == "bars":
-                problem = supported_quantity_problem(name, system.joints or (), system.supports)
-            else:
-                problem = held_quantity_problem(name, system.grain or (), bool(system.rotations in (None, True)))
-            if problem is not None:
-                errors.add(f"{prefix}.{table}.{name}", problem)
+            if name in held:
+                errors.add(f"{prefix}.{table}.{name}", f"{name} is held by {held[name]}: a stage cannot control "
+                                                        "a held dof or its force; free it there, or leave it out")
                 found = True
     return found
 

@@ -71,11 +71,9 @@ def system_section(
         if key not in table:
             continue
         value = table[key]
-        if kind is not None and name in ("packing", "grains"):
-            errors.add(f"system.{key}", f"system {name!r} follows the contacts it is given (new contacts are not "
-                                        f"detected, each contact's law is its own): {key} does not apply to it")
-        elif kind is not None and not kind.granular:
-            errors.add(f"system.{key}", f"system {name!r} has no grains in contact: {key} does not apply to it")
+        if kind is not None and not kind.granular:
+            errors.add(f"system.{key}", f"system {name!r} has no secondary contacts (new contacts between grains "
+                                        f"are not looked for): {key} does not apply to it")
         elif not isinstance(value, str) or value not in allowed:
             shown = repr(value) if isinstance(value, str) else toml_type(value)
             hint = did_you_mean(value, allowed) if isinstance(value, str) else ""

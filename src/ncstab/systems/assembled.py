@@ -135,6 +135,10 @@ class AssembledSystem:
     hold_other_forces
         A loading stage may leave dofs uncontrolled: their forces are held where they
         are when it starts (a packing's thousands of dofs), instead of an error.
+    held
+        ``((quantity, where), ...)``: the displacements and forces that the system holds and
+        a stage cannot control, with the setting that holds them (a grain's held ``y1`` and
+        ``Fy1``, a supported joint's ``w3`` and ``F3``); a stage naming one is refused.
     """
 
     name: str
@@ -159,6 +163,7 @@ class AssembledSystem:
     contact_forces: np.ndarray | None = None
     case_system: Callable[[AssembledSystem, Any, dict[str, float]], AssembledSystem] | None = None
     hold_other_forces: bool = False
+    held: tuple[tuple[str, str], ...] = ()
 
     def for_values(self, values: dict[str, float], law: Any = None) -> AssembledSystem:
         """The system of one case: its springs stress-free where its parameters say, its

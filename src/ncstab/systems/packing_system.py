@@ -120,7 +120,6 @@ def _contacts(packing: Packing, keep: np.ndarray, scale: np.ndarray) -> GrainCon
     free = dofs >= 0
     first = dofs[np.arange(len(dofs)), np.argmax(free, axis=1)]
     dofs = np.where(free, dofs, first[:, None])
-    dofs = np.where(dofs >= 0, dofs, dofs.max(axis=1, keepdims=True))  # single held dofs (a study's grains)
     branch = np.column_stack([packing.x[b] - packing.x[a], packing.y[b] - packing.y[a]])
     total = packing.radius[a] + packing.radius[b]
     lever = np.column_stack([packing.radius[a] / total, packing.radius[b] / total])

@@ -10,12 +10,12 @@ nowhere else.
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 from dataclasses import dataclass
 from typing import Any, Callable
 
 from ncstab.laws.definition import ALPHA0_SPEC, ParameterSpec
+from ncstab.lazy_imports import lazy_function
 from ncstab.systems.bars import IMPERFECTION_SPEC, ZIEGLER_LOADS, ZIEGLER_PARAMETERS, column, ziegler
 from ncstab.systems.definition import SystemDefinition
 from ncstab.systems.granular import axes_diamond, ring, symmetric_diamond
@@ -162,26 +162,14 @@ def _ring(grains: int):
     return ring(grains)
 
 
-def _packing(file: str):
-    from ncstab.systems.packing_system import packing_system
-
-    return packing_system(file)
-
-
-def _packing_file(value: Any) -> str | None:
-    from ncstab.systems.packing_system import packing_file_problem
-
-    return packing_file_problem(value)
-
-
-def _grains(grain: tuple, contacts: tuple, rotations: bool = True):
-    from ncstab.systems.packing_system import assembled_packing
-    from ncstab.systems.user_grains import grain_packing
-
-    system = assembled_packing(grain_packing(grain, contacts, rotations))
-    return dataclasses.replace(system, name="grains", title=f"{len(grain)} grains given in the study file "
-                               f"({system.n_dof} dofs, {len(contacts)} contacts)",
-                               settings=(("contacts", contacts), ("grain", grain), ("rotations", rotations)))
+_packing = lazy_function("ncstab.systems.packing_system", "packing_system")
+_packing_file = lazy_function("ncstab.systems.packing_system", "packing_file_problem")
+_grains = lazy_function("ncstab.systems.user_grains", "grains_system")
+_grains_together = lazy_function("ncstab.systems.user_grains", "grains_problems")
+_frozen_grains = lazy_function("ncstab.systems.user_grains", "freeze_grains")
+_frozen_contacts = lazy_function("ncstab.systems.user_grains", "freeze_contacts")
+_bars = lazy_function("ncstab.systems.user_bars", "assembled_bars")
+_bars_together = lazy_function("ncstab.systems.user_bars", "bars_problems")
 
 
 def _grain_list(value: Any) -> str | None:
@@ -190,38 +178,6 @@ def _grain_list(value: Any) -> str | None:
 
 def _contact_list(value: Any) -> str | None:
     return None if isinstance(value, (list, tuple)) else "a list of grain index pairs such as [[0, 1], [1, 2]]"
-
-
-def _grains_together(grain, contacts, rotations=True) -> list[tuple[str, str]]:
-    from ncstab.systems.user_grains import grains_problems
-
-    thaw = [{"x": g[0], "y": g[1], "radius": g[2], "held": list(g[3])} if isinstance(g, tuple) else g for g in grain]
-    return grains_problems(thaw, [list(c) for c in contacts], rotations)
-
-
-def _frozen_grains(value):
-    from ncstab.systems.user_grains import freeze_grains
-
-    return value if value and isinstance(value[0], tuple) else freeze_grains(value)
-
-
-def _frozen_contacts(value):
-    from ncstab.systems.user_grains import freeze_contacts
-
-    return freeze_contacts(value)
-
-
-def _bars(joints: tuple, supports: Any = "ends", springs: Any = 1.0):
-    from ncstab.systems.user_bars import assembled_bars
-
-    return assembled_bars(joints, supports, springs)
-
-
-def _bars_together(joints, supports="ends", springs=1.0) -> list[tuple[str, str]]:
-    from ncstab.systems.user_bars import bars_problems
-
-    return bars_problems(list(joints), supports if supports == "ends" else list(supports),
-                         list(springs) if isinstance(springs, (list, tuple)) else springs)
 
 
 def _frozen_list(value):

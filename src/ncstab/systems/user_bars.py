@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["MOST_JOINTS", "assembled_bars", "bars_problems", "supported_quantity_problem"]
+__all__ = ["MOST_JOINTS", "assembled_bars", "bars_problems"]
 
 #: The most joints of a study file's list (a longer column is ``name = "column"``).
 MOST_JOINTS = 100_000
@@ -75,18 +75,6 @@ def bars_problems(joints: Any, supports: Any = None, springs: Any = 1.0) -> list
     return []
 
 
-def supported_quantity_problem(name: str, joints: tuple, supports: tuple | None) -> str | None:
-    """What is wrong with a stage that controls ``name`` (``w3`` or ``F3``) where joint 3 is
-    supported, or ``None``."""
-    supported = (0, len(joints) - 1) if supports in (None, "ends") else supports
-    for prefix in ("w", "F"):
-        index = name[len(prefix):]
-        if name.startswith(prefix) and index.isdigit() and int(index) in supported and int(index) < len(joints):
-            return (f"{name} is held by [system] supports = {list(supported)} (joint {int(index)} stays on the "
-                    "axis): a stage cannot control a held dof or its force")
-    return None
-
-
 def assembled_bars(joints: tuple, supports: Any = "ends", springs: Any = 1.0):
     """The :class:`~ncstab.systems.assembled.AssembledSystem` of a chain (see the module docstring)."""
     from ncstab.elements import BarSprings
@@ -117,6 +105,7 @@ def assembled_bars(joints: tuple, supports: Any = "ends", springs: Any = 1.0):
     springs_elements = BarSprings(tuple(f"joint{j}" for j in joint), np.where(present, local, 0), rises,
                                   weight=stiffness)
     dofs = tuple(f"w{j}" for j in np.flatnonzero(~held))
+    where = f"[system] supports = {list(np.flatnonzero(held))}"
     return AssembledSystem(
         name="bars",
         title=f"chain of {n} rigid bars given by its joints, {int(held.sum())} supported, axial dead load",
@@ -128,4 +117,5 @@ def assembled_bars(joints: tuple, supports: Any = "ends", springs: Any = 1.0):
         units=COLUMN_UNITS,
         settings=(("joints", tuple(joints)), ("springs", springs), ("supports", supports)),
         reference="Hencky (1921), Eisenbau 12 437-452 (the bar chain); docs/study-files.md",
+        held=tuple((f"{q}{j}", where) for j in np.flatnonzero(held).tolist() for q in ("w", "F")),
     )

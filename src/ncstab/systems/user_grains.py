@@ -36,11 +36,12 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["COMPONENTS", "TOUCH_TOLERANCE", "freeze_contacts", "freeze_grains", "grain_packing",
-           "grains_problems", "held_dof_names"]
+__all__ = ["COMPONENTS", "TOUCH_TOLERANCE", "freeze_contacts", "freeze_grains", "grains_problems",
+           "grains_system", "held_quantities"]
 
-#: A grain's dofs, in order.
+#: A grain's dofs, in order, and their forces.
 COMPONENTS = ("x", "y", "theta")
+FORCES = ("Fx", "Fy", "M")
 #: The keys of a grain's table.
 GRAIN_KEYS = ("x", "y", "radius", "held")
 #: Grains touch where their centre distance is the sum of their radii to this part of the mean
@@ -51,7 +52,15 @@ MOST_GRAINS = 10_000
 
 
 def _number(value: Any) -> bool:
+    """A finite number that is not a boolean (TOML's ``true`` is no radius)."""
     return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _table(grain: Any) -> Any:
+    """A grain as its table: a frozen grain ``(x, y, radius, held)`` back as ``{x, y, radius, held}``."""
+    if isinstance(grain, tuple) and len(grain) == 4:
+        return {"x": grain[0], "y": grain[1], "radius": grain[2], "held": list(grain[3])}
+    return grain
 
 
 def _grain_problem(index: int, grain: Any) -> tuple[str, str] | None:
@@ -77,9 +86,15 @@ def _grain_problem(index: int, grain: Any) -> tuple[str, str] | None:
 def grains_problems(grain: Any, contacts: Any, rotations: Any = True) -> list[tuple[str, str]]:
     """Every problem of a grain list and its contacts, as ``(field, message)`` (fields under ``system.``).
 
-    The geometry is checked only where each grain and contact is well formed: contacts
-    whose grains do not touch, then pairs of grains that overlap (a k-d tree, not all pairs).
+    ``grain`` and ``contacts`` as a study file gives them (lists of tables and pairs) or frozen
+    (:func:`freeze_grains`, :func:`freeze_contacts`).  The geometry is checked only where each
+    grain and contact is well formed: contacts whose grains do not touch, then pairs of grains
+    that overlap (a k-d tree, not all pairs).
     """
+    if isinstance(grain, tuple):
+        grain = [_table(g) for g in grain]
+    if isinstance(contacts, tuple):
+        contacts = [list(pair) for pair in contacts]
     if not isinstance(grain, list) or not grain:
         return [("grain", "expected a list of grain tables { x = ..., y = ..., radius = ..., held = [...] }")]
     if len(grain) > MOST_GRAINS:
@@ -133,9 +148,10 @@ def _geometry_problems(grain: list[dict], contacts: list[list[int]]) -> list[tup
     return problems
 
 
-def freeze_grains(grain: list[dict]) -> tuple[tuple[float, float, float, tuple[str, ...]], ...]:
-    """A grain list as a hashable value: ``((x, y, radius, held), ...)``."""
-    return tuple((float(g["x"]), float(g["y"]), float(g["radius"]), tuple(g.get("held", ()))) for g in grain)
+def freeze_grains(grain: list[dict] | tuple) -> tuple[tuple[float, float, float, tuple[str, ...]], ...]:
+    """A grain list as a hashable value: ``((x, y, radius, held), ...)`` (a frozen one as it is)."""
+    tables = [_table(g) for g in grain]
+    return tuple((float(g["x"]), float(g["y"]), float(g["radius"]), tuple(g.get("held", ()))) for g in tables)
 
 
 def freeze_contacts(contacts: list[list[int]]) -> tuple[tuple[int, int], ...]:
@@ -150,38 +166,37 @@ def _held_mask(grains: tuple, rotations: bool) -> np.ndarray:
     return held
 
 
-def held_dof_names(grains: tuple, rotations: bool = True) -> tuple[str, ...]:
-    """The dofs that the grains hold (``y3``, ``theta0``), which a stage cannot control."""
+def held_quantities(grains: tuple, rotations: bool = True) -> tuple[tuple[str, str], ...]:
+    """Each held dof and its force (``y1`` and ``Fy1``, ``theta0`` and ``M0``) with where it is held:
+    what a stage cannot control (:attr:`~ncstab.systems.assembled.AssembledSystem.held`)."""
     held = _held_mask(grains, rotations)
-    return tuple(f"{c}{i}" for i in range(len(grains)) for j, c in enumerate(COMPONENTS) if held[i, j])
+    out = []
+    for i, j in zip(*np.nonzero(held)):
+        where = ("[system] rotations = false" if j == 2 and not rotations
+                 else f"[system] grain[{i}].held = {list(grains[i][3])}")
+        for name in (f"{COMPONENTS[j]}{i}", f"{FORCES[j]}{i}"):
+            out.append((name, where))
+    return tuple(out)
 
 
-def grain_packing(grains: tuple, contacts: tuple, rotations: bool = True):
-    """The :class:`~ncstab.systems.packing.Packing` of frozen grains and contacts: no contact
-    forces, a grain with its three dofs held is ``fixed``, the others hold theirs (``held``)."""
+def grains_system(grain: tuple, contacts: tuple, rotations: bool = True):
+    """The system of frozen grains and contacts: the :class:`~ncstab.systems.packing.Packing` of
+    grains at rest (no contact forces; a grain with its three dofs held is ``fixed``, the others
+    hold theirs, ``held``), followed as a packing
+    (:func:`~ncstab.systems.packing_system.assembled_packing`)."""
+    import dataclasses
+
     from ncstab.systems.packing import Packing
+    from ncstab.systems.packing_system import assembled_packing
 
-    held = _held_mask(grains, rotations)
-    values = np.array([g[:3] for g in grains], dtype=float)
+    held = _held_mask(grain, rotations)
+    values = np.array([g[:3] for g in grain], dtype=float)
     zero = np.zeros(len(contacts))
-    return Packing(values[:, 0], values[:, 1], values[:, 2], held.all(axis=1),
-                   np.array(contacts, dtype=np.intp).reshape(-1, 2), zero, zero.copy(),
-                   source="[system] grain", held=held)
-
-
-def held_quantity_problem(name: str, grains: tuple, rotations: bool = True) -> str | None:
-    """What is wrong with a stage that controls ``name`` (``y1`` or its force ``Fy1``) where the
-    grain holds that dof, or ``None``."""
-    forces = {"Fx": "x", "Fy": "y", "M": "theta"}
-    for prefix, component in (*forces.items(), *((c, c) for c in COMPONENTS)):
-        index = name[len(prefix):]
-        if name.startswith(prefix) and index.isdigit() and int(index) < len(grains):
-            i = int(index)
-            if component == "theta" and not rotations:
-                return (f"{name} is held by [system] rotations = false (no grain rotates): a stage cannot "
-                        "control a held dof or its force")
-            if component in grains[i][3]:
-                return (f"{name} is held by [system] grain[{i}].held = {list(grains[i][3])}: a stage cannot "
-                        "control a held dof or its force; free it there, or leave it out of the stage")
-            return None
-    return None
+    packing = Packing(values[:, 0], values[:, 1], values[:, 2], held.all(axis=1),
+                      np.array(contacts, dtype=np.intp).reshape(-1, 2), zero, zero.copy(),
+                      source="[system] grain", held=held)
+    system = assembled_packing(packing)
+    return dataclasses.replace(
+        system, name="grains", title=f"{len(grain)} grains given in the study file ({system.n_dof} dofs, "
+        f"{len(contacts)} contacts)", settings=(("contacts", contacts), ("grain", grain), ("rotations", rotations)),
+        held=held_quantities(grain, rotations))
