@@ -176,19 +176,27 @@ def _without_volatile(dataset: xr.Dataset) -> xr.Dataset:
     return dataset
 
 
-def golden_options(study_file: Path) -> Study:
+def golden_options(study_file: Path, backend: str = "auto") -> Study:
     """The study with the engine options its golden archive was written with: every
     step stored once (``sample_step`` not set) and ``max_step`` 0.02 unless the study
-    sets it (the defaults before ``sample_step``, CHANGELOG)."""
+    sets it (the defaults before ``sample_step``, CHANGELOG); the loop run as ``backend``
+    says."""
     study = load_study(study_file)
     own = tomllib.loads(study_file.read_text(encoding="utf-8")).get("options", {})
     max_step = study.options.max_step if "max_step" in own else 0.02
-    return dataclasses.replace(study, options=dataclasses.replace(study.options, sample_step=None, max_step=max_step))
+    options = dataclasses.replace(study.options, sample_step=None, max_step=max_step, backend=backend)
+    return dataclasses.replace(study, options=options)
 
 
+#: The loop as machine code (``auto``: the session's warm-up compiled it) and as plain
+#: Python (ncstab.plain_python): the same text, so the same golden archive, bit for bit.
+BACKENDS = ("auto", "python")
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("study_file", STUDIES, ids=[p.stem for p in STUDIES])
-def test_a_study_gives_its_golden_archive(study_file: Path) -> None:
-    study = golden_options(study_file)
+def test_a_study_gives_its_golden_archive(study_file: Path, backend: str) -> None:
+    study = golden_options(study_file, backend)
     golden = open_study(GOLDEN / f"{study.name}.nc")
     computed = normalise_dataset(run_study(study))
     golden = _documented_changes(golden, computed)

@@ -71,7 +71,7 @@ def compiled_module(prefix: str, *functions: Callable[..., Any]) -> Any:
     return load_named_module(f"{prefix.replace('.', '_')}_{digest}", lambda: text)
 
 
-def load_named_module(name: str, source: Callable[[], str]) -> Any:
+def load_named_module(name: str, source: Callable[[], str], plain: bool = False) -> Any:
     """Import the module ``name`` from the cache folder ``<cache root>/compiled``, writing
     it first from ``source()`` where the folder does not hold it.
 
@@ -79,7 +79,9 @@ def load_named_module(name: str, source: Callable[[], str]) -> Any:
     (:func:`ncstab.paths.compiled_source.load_module` hashes the text itself;
     :class:`ncstab.operators.model_kernel.ModelKernel` the model it is printed from,
     so that a cached model needs no sympy).  Written atomically; where the cache
-    directory cannot be written, a temporary one serves this process only.
+    directory cannot be written, a temporary one serves this process only.  With
+    ``plain``, the module's text runs as plain Python, nothing compiled
+    (:func:`ncstab.plain_python.plain_file`).
     """
     from ncstab.numba_cache import harden_numba_cache
 
@@ -87,7 +89,7 @@ def load_named_module(name: str, source: Callable[[], str]) -> Any:
     # One thread at a time (the threads of a dask worker run chunks side by side):
     # another thread must not find the module half executed.
     with _LOADING:
-        if name in sys.modules:
+        if name in sys.modules and not plain:
             return sys.modules[name]
         try:
             directory = cache_directory(CACHE_KIND)
@@ -97,6 +99,10 @@ def load_named_module(name: str, source: Callable[[], str]) -> Any:
                 path = _write_module(directory, name, source())
         except OSError:  # a read-only home, say
             path, cached = _write_module(Path(tempfile.mkdtemp(prefix="ncstab-compiled-")), name, source()), False
+        if plain:
+            from ncstab.plain_python import plain_file
+
+            return plain_file(name, str(path))
         try:
             return _execute(name, path)
         except Exception:

@@ -88,7 +88,26 @@ class ModelKernel:
         out = np.empty((size, self.layout.size))
         if size == 0:
             return out
-        self._compiled_batch()(
+        from ncstab.paths.loop_route import evaluates_plain
+
+        from ncstab.plain_python import PLAIN_ERRORS
+
+        if evaluates_plain(size, self.module.evaluate_batch):
+            try:
+                with np.errstate(all="ignore"):
+                    self._evaluate(self.plain_batch, u, internal, load, state, rows, out)
+                return out
+            except PLAIN_ERRORS:  # a division by zero of Python floats: compiled, inf as numba gives
+                pass
+        self._evaluate(self._compiled_batch(), u, internal, load, state, rows, out)
+        return out
+
+    def _evaluate(
+        self, batch: Any, u: np.ndarray, internal: np.ndarray, load: np.ndarray, state: np.ndarray, rows: np.ndarray,
+        out: np.ndarray,
+    ) -> None:
+        size = u.shape[0]
+        batch(
             np.ascontiguousarray(u, dtype=float),
             np.ascontiguousarray(internal, dtype=float).reshape(size, self.layout.n_internal),
             np.ascontiguousarray(np.broadcast_to(load, (size,)), dtype=float),
@@ -96,7 +115,6 @@ class ModelKernel:
             rows,
             out,
         )
-        return out
 
     @functools.cached_property
     def callback(self) -> Any:
@@ -107,6 +125,21 @@ class ModelKernel:
         except numba.core.errors.NumbaError as error:
             first = str(error).strip().splitlines()[0]
             raise ValueError(f"system {self.definition.name!r}: numba cannot compile its kernel: {first}") from None
+
+    @functools.cached_property
+    def plain_case(self) -> Any:
+        """``case`` of the module as plain Python (:mod:`ncstab.plain_python`): the plain
+        stage loop's ``law``, nothing compiled."""
+        from ncstab.plain_python import plain_module
+
+        return plain_module(self.module).case
+
+    @functools.cached_property
+    def plain_batch(self) -> Any:
+        """``evaluate_batch`` of the module as plain Python (:mod:`ncstab.plain_python`)."""
+        from ncstab.plain_python import plain_module
+
+        return plain_module(self.module).evaluate_batch
 
     def _compiled_batch(self) -> Any:
         """``evaluate_batch``, compiled (a numba error becomes a ValueError naming the system)."""

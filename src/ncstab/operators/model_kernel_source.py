@@ -25,16 +25,25 @@ from ncstab.laws.catalogue import no_tension_branches
 from ncstab.operators.model_assembly import ASSEMBLY
 from ncstab.operators.model_kernel_layout import KERNEL_SIGNATURE, KernelLayout
 from ncstab.symbolic.interaction import derive_interaction
+from ncstab.symbolic.powers import LARGEST_UNROLLED, power_product
 from ncstab.systems.definition import SystemDefinition
 
 __all__ = ["KERNEL_SIGNATURE", "KernelLayout", "kernel_source"]
 
 
 class _Printer(PythonCodePrinter):
-    """Python printer for numba: math functions, Piecewise as conditional expressions."""
+    """Python printer for numba: math functions, Piecewise as conditional expressions,
+    integer powers as numba's products (:func:`ncstab.symbolic.powers.power_product`)."""
 
     def __init__(self) -> None:
         super().__init__({"fully_qualified_modules": True, "allow_unknown_functions": False})
+
+    def _print_Pow(self, expr: sp.Expr, rational: bool = False) -> str:  # noqa: N802 (sympy's name)
+        base, exponent = expr.as_base_exp()
+        if exponent.is_Integer and 0 < abs(int(exponent)) <= LARGEST_UNROLLED:
+            text = self._print(base)
+            return power_product(text if base.is_Symbol else f"({text})", int(exponent))
+        return super()._print_Pow(expr, rational=rational)
 
 
 def _clean(expression: Any) -> sp.Expr:

@@ -271,15 +271,17 @@ def _kernel_printer_class() -> type:
     from sympy.printing.numpy import NumPyPrinter
 
     class KernelPrinter(NumPyPrinter):
-        """numpy printer writing x**-k (small k) as 1/x products: numpy's power
-        with a float exponent costs several multiplications."""
+        """numpy printer writing integer powers as products in numba's order
+        (:func:`ncstab.symbolic.powers.power_product`): the same bits compiled, in plain
+        Python and on numpy arrays, and cheaper than numpy's power."""
 
         def _print_Pow(self, expr, rational=False):  # noqa: N802 (sympy's name)
+            from ncstab.symbolic.powers import LARGEST_UNROLLED, power_product
+
             base, exponent = expr.as_base_exp()
-            if exponent.is_Integer and -3 <= int(exponent) <= -1:
-                factor = self._print(base) if base.is_Atom else f"({self._print(base)})"
-                product = "*".join([factor] * -int(exponent))
-                return f"(1/({product}))"
+            if exponent.is_Integer and 0 < abs(int(exponent)) <= LARGEST_UNROLLED:
+                text = self._print(base)
+            return power_product(text if base.is_Symbol else f"({text})", int(exponent))
             return super()._print_Pow(expr, rational=rational)
 
     return KernelPrinter

@@ -161,17 +161,27 @@ LAW_SIGNATURE = (
 
 @functools.cache
 def _runner(
-    kernels: tuple[Callable[..., list], ...], overlap: Callable[..., Any] | None, n_parameters: int, rate_form: bool
+    kernels: tuple[Callable[..., list], ...], overlap: Callable[..., Any] | None, n_parameters: int, rate_form: bool,
+    plain: bool = False,
 ) -> StageLoop:
     """The loop for one law's fused kernels: the loop of its form (two per machine,
-    compiled once) and the law's own kernel (compiled once per law, a second or two)."""
+    compiled once) and the law's own kernel (compiled once per law, a second or two);
+    with ``plain``, both as plain Python (:mod:`ncstab.plain_python`), nothing compiled."""
     from ncstab.paths.compiled_source import kernel_body, kernel_source, load_module, loop_source
 
     uses_alpha = any(re.search(r"\balpha_\b", kernel_body(kernel)) for kernel in kernels)
     uses_alpha |= overlap is not None and re.search(r"\balpha\b", kernel_body(overlap)) is not None
-    loop = load_module(loop_source(rate_form), "ncstab_stage_loop").LOOP
-    law = load_module(kernel_source(kernels, overlap, n_parameters, 10 if rate_form else 8), "ncstab_law").LAW
+    loop = load_module(loop_source(rate_form), "ncstab_stage_loop", plain).LOOP
+    law = load_module(kernel_source(kernels, overlap, n_parameters, 10 if rate_form else 8), "ncstab_law", plain).LAW
     return StageLoop(loop.run, loop.start, loop.settle, law, uses_alpha)
+
+
+def loop_entry(rate_form: bool) -> Any:
+    """The compiled loop's entry point of one form (``run_cases``, not compiled by this call),
+    whose machine code in numba's cache decides the route (:mod:`ncstab.paths.loop_route`)."""
+    from ncstab.paths.compiled_source import load_module, loop_source
+
+    return load_module(loop_source(rate_form), "ncstab_stage_loop").LOOP.run
 
 
 @functools.cache
@@ -187,8 +197,9 @@ def _overlap_function(definition: Any) -> Callable[..., Any]:
     return sp.lambdify(arguments, definition.normal_overlap, modules="numpy", printer=NumPyPrinter)
 
 
-def stage_runner(batch: Any) -> StageLoop:
-    """The compiled stage loop for this batch's law (compiled on first use).
+def stage_runner(batch: Any, plain: bool = False) -> StageLoop:
+    """The compiled stage loop for this batch's law (compiled on first use), or with
+    ``plain`` its text as plain Python.
 
     Raises
     ------
@@ -202,4 +213,6 @@ def stage_runner(batch: Any) -> StageLoop:
         )
     definition = batch.law.definition
     overlap = _overlap_function(definition) if definition.no_tension else None
-    return _runner(tuple(batch._kernels), overlap, len(definition.parameter_names), not batch.law.has_total_form)
+    return _runner(
+        tuple(batch._kernels), overlap, len(definition.parameter_names), not batch.law.has_total_form, plain
+    )

@@ -33,11 +33,12 @@ __all__ = ["GeneralStages", "general_runner"]
 
 
 @functools.cache
-def general_runner(rate_form: bool) -> StageLoop:
-    """The compiled stage loop of the general models of one form (compiled once per machine)."""
+def general_runner(rate_form: bool, plain: bool = False) -> StageLoop:
+    """The compiled stage loop of the general models of one form (compiled once per machine),
+    or with ``plain`` its text as plain Python (:mod:`ncstab.plain_python`)."""
     from ncstab.paths.compiled_source import general_loop_source, load_module
 
-    loop = load_module(general_loop_source(rate_form), "ncstab_general_loop").LOOP
+    loop = load_module(general_loop_source(rate_form), "ncstab_general_loop", plain).LOOP
     return StageLoop(loop.run, loop.start, loop.settle)
 
 
@@ -50,15 +51,19 @@ class GeneralStages(CompiledStages):
         The stepper's cases.
     loop
         :func:`general_runner` of the model's form.
+    plain
+        Whether ``loop`` is plain Python: the model's kernel is then its plain ``case``,
+        not its compiled C callback.
     """
 
-    def __init__(self, batch: ModelBatch, loop: StageLoop) -> None:
+    def __init__(self, batch: ModelBatch, loop: StageLoop, plain: bool = False) -> None:
         from ncstab.paths.cofactor import work_size
 
         size, n = batch.size, batch.n_dof
         kernel = batch._kernel
         layout, module = kernel.layout, kernel.module
-        self.runner, self.starter, self.settler, self.law = loop.run, loop.start, loop.settle, kernel.callback
+        self.runner, self.starter, self.settler = loop.run, loop.start, loop.settle
+        self.law = kernel.plain_case if plain else kernel.callback
         self.batch = batch
         # p: the kernel's parameter row, the work factor, the contact-state bits (loop_general)
         self.parameters = np.column_stack([batch._rows, np.full(size, batch.work_factor), np.zeros(size)])

@@ -71,7 +71,6 @@ def rigid_kernel_source(law: Any) -> str:
     row of one case (:func:`rigid_row`; ``fill``, which ``evaluate_batch`` runs over a batch); ``law`` is
     the law's definition (:class:`ncstab.laws.definition.LawDefinition`)."""
     from ncstab.laws.definition import ALPHA, ALPHA0
-    from ncstab.operators.model_kernel_layout import KERNEL_SIGNATURE
     from ncstab.paths.rigid_model import LEFT_RIGHT, TOP_BOTTOM
     from ncstab.symbolic.rigid import NHAT, rigid_limit
 
@@ -157,7 +156,6 @@ def fill(v, internal, state, alpha0, out):
     out[{at} + 3] = tangential
 
 
-@numba.cfunc("{KERNEL_SIGNATURE}", cache=True, error_model="numpy")
 def case(v_pointer, internal_pointer, load, state, p_pointer, out_pointer, scratch_pointer):
     p = numba.carray(p_pointer, (1,))
     fill(numba.carray(v_pointer, (2,)), numba.carray(internal_pointer, ({row["n_internal"]},)), state, p[0],
@@ -172,13 +170,14 @@ def evaluate_batch(v, internal, state, alpha0, out):
 
 
 @functools.cache
-def rigid_module(law: Any) -> Any:
+def rigid_module(law: Any, plain: bool = False) -> Any:
     """A law's kernel module (printed once per law and process; compiled once per machine,
     in the folder of the compiled modules): ``case``, the loop's C callback, and
-    ``evaluate_batch``, the same rows for a batch (``RigidCaseBatch.evaluate``)."""
+    ``evaluate_batch``, the same rows for a batch (``RigidCaseBatch.evaluate``); with
+    ``plain``, as plain Python (:mod:`ncstab.plain_python`)."""
     source = rigid_kernel_source(law)
     digest = hashlib.sha256((source + numba.__version__ + np.__version__).encode()).hexdigest()[:20]
-    return load_named_module(f"ncstab_rigid_{digest}", lambda: source)
+    return load_named_module(f"ncstab_rigid_{digest}", lambda: source, plain)
 
 
 def rigid_rows(law: Any, v: np.ndarray, internal: np.ndarray, state: np.ndarray, alpha0: np.ndarray) -> np.ndarray:
@@ -188,7 +187,12 @@ def rigid_rows(law: Any, v: np.ndarray, internal: np.ndarray, state: np.ndarray,
     size = rigid_row(rigid_limit(law).tangential is None)["size"]
     out = np.empty((v.shape[0], size))
     if out.shape[0]:
-        rigid_module(law).evaluate_batch(
+        from ncstab.paths.loop_route import evaluates_plain
+
+        evaluate = rigid_module(law).evaluate_batch
+        if evaluates_plain(out.shape[0], evaluate):
+            evaluate = rigid_module(law, plain=True).evaluate_batch
+        evaluate(
             np.ascontiguousarray(v, dtype=float), np.ascontiguousarray(internal, dtype=float),
             np.ascontiguousarray(state, dtype=np.int64), np.ascontiguousarray(alpha0, dtype=float), out,
         )
@@ -204,16 +208,22 @@ class RigidStages(GeneralStages):
         The stepper's cases (:class:`~ncstab.paths.rigid_model.RigidCaseBatch`).
     loop
         :func:`ncstab.paths.compiled_general.general_runner` of the law's form.
+    plain
+        Whether ``loop`` is plain Python (then so is the law's kernel).
     """
 
-    def __init__(self, batch: RigidCaseBatch, loop: StageLoop) -> None:
+    def __init__(self, batch: RigidCaseBatch, loop: StageLoop, plain: bool = False) -> None:
         from ncstab.paths.cofactor import work_size
 
         size, n = batch.size, 2
         rate_form = not batch.has_total_form
         row = rigid_row(rate_form)
         self.runner, self.starter, self.settler = loop.run, loop.start, loop.settle
-        self.law = rigid_module(batch.law.definition).case
+        self.law = rigid_module(batch.law.definition, plain).case
+        if not plain:  # the loop's C callback (compiled once per law and machine)
+            from ncstab.operators.model_kernel_layout import KERNEL_SIGNATURE
+
+            self.law = numba.cfunc(KERNEL_SIGNATURE, cache=True, error_model="numpy")(self.law)
         self.batch = batch
         # p: alpha0, the work factor, the contact state (0 free, else the blocking gap's bit)
         alpha0 = np.broadcast_to(np.asarray(batch._alpha0, dtype=float), (size,))

@@ -227,15 +227,32 @@ def LAW(l, a, c, s, t, p, ev):
 '''
 
 
+#: numpy's elementary functions in a printed law, and the math module's name for each: the
+#: loop evaluates scalars, for which numba compiles both to the C library's function;
+#: written as math, the plain-Python loop (:mod:`ncstab.plain_python`) calls the C
+#: library too, not numpy's own SIMD code (which differs by a rounding for some).
+SCALAR_FUNCTIONS = {
+    "sin": "sin", "cos": "cos", "tan": "tan", "arcsin": "asin", "arccos": "acos", "arctan": "atan",
+    "arctan2": "atan2", "sinh": "sinh", "cosh": "cosh", "tanh": "tanh", "exp": "exp", "expm1": "expm1",
+    "log": "log", "log1p": "log1p", "log10": "log10", "hypot": "hypot",
+}
+
+
 def _function_source(function: Callable[..., Any], name: str) -> str:
-    """The source of a generated (lambdified) function, renamed ``name``."""
+    """The source of a generated (lambdified) function, renamed ``name``, its numpy
+    elementary functions written as math's (:data:`SCALAR_FUNCTIONS`)."""
     text = inspect.getsource(function)
+    text = re.sub(
+        r"\bnumpy\.(\w+)\(",
+        lambda call: f"math.{SCALAR_FUNCTIONS[call[1]]}(" if call[1] in SCALAR_FUNCTIONS else call[0],
+        text,
+    )
     return re.sub(r"def \w+\(", f"def {name}(", text, count=1)
 
 
 
 
-def load_module(source: str, prefix: str) -> Any:
+def load_module(source: str, prefix: str, plain: bool = False) -> Any:
     """Import the generated module ``source`` from the cache folder ``<cache root>/compiled``.
 
     The file is named ``prefix`` and a hash of its text, of what it imports and of the
@@ -252,4 +269,4 @@ def load_module(source: str, prefix: str) -> Any:
                   OVER_ALIGNMENT, OVER_MARGIN, numba.__version__, np.__version__))
     own = (Path(__file__).parent / "compiled.py").read_text(encoding="utf-8")
     digest = hashlib.sha256((source + stamp + own).encode()).hexdigest()[:20]
-    return load_named_module(f"{prefix}_{digest}", lambda: source)
+    return load_named_module(f"{prefix}_{digest}", lambda: source, plain)

@@ -75,6 +75,10 @@ class CompiledStages:
         :func:`ncstab.paths.compiled.stage_runner` for that law.
     """
 
+    #: Whether the loop runs as plain Python (:mod:`ncstab.plain_python`; set by
+    #: :func:`ncstab.paths.engine_choice.choose_engine`).
+    plain = False
+
     def __init__(self, batch: CaseBatch, loop: StageLoop) -> None:
         size = batch.size
         self.runner = loop.run

@@ -19,9 +19,15 @@ if TYPE_CHECKING:
 __all__ = ["choose_engine"]
 
 
-def choose_engine(batch: Any, programme: LoadingProgramme, options: PathOptions) -> tuple[CompiledStages, str]:
+def choose_engine(
+    batch: Any, programme: LoadingProgramme, options: PathOptions, plain: bool | None = None
+) -> tuple[CompiledStages, str]:
     """The compiled stage loop bound to ``batch``, and the engine in words (the archive's
     ``engine`` attribute: ``compiled stepper (numba X.Y.Z)`` and the model's kernel).
+
+    ``plain``: whether the loop runs as plain Python (:mod:`ncstab.plain_python`); by
+    default as :func:`ncstab.paths.loop_route.runs_plain` says for ``options.backend``.  Either route gives the
+    same numbers, so the engine in words does not say which ran.
 
     Raises
     ------
@@ -33,20 +39,30 @@ def choose_engine(batch: Any, programme: LoadingProgramme, options: PathOptions)
 
     if not compiled.NUMBA_AVAILABLE:
         compiled.stage_runner(batch)  # raises, naming what to install
+    from ncstab.paths.compiled_general import general_runner
+    from ncstab.paths.loop_route import runs_plain
     from ncstab.paths.model_batch import ModelBatch
     from ncstab.paths.rigid_model import RigidCaseBatch
+    from ncstab.paths.rhs import StateLayout
 
+    rate_form = not batch.has_total_form
+    general = isinstance(batch, (ModelBatch, RigidCaseBatch))
+    if plain is None:
+        entry = general_runner(rate_form).run if general else compiled.loop_entry(rate_form)
+        plain = runs_plain(options.backend, batch.size, StateLayout(batch.n_dof, batch.n_internal).size, entry)
     engine = f"compiled stepper (numba {compiled.numba.__version__})"
     if isinstance(batch, ModelBatch):
-        from ncstab.paths.compiled_general import GeneralStages, general_runner
+        from ncstab.paths.compiled_general import GeneralStages
 
-        stages = GeneralStages(batch, general_runner(not batch.has_total_form))
-        return stages, f"{engine} with compiled model kernels"
-    if isinstance(batch, RigidCaseBatch):  # the pure-shear limit: on the general models' loop
-        from ncstab.paths.compiled_general import general_runner
+        stages, engine = GeneralStages(batch, general_runner(rate_form, plain), plain), f"{engine} with compiled model kernels"
+    elif isinstance(batch, RigidCaseBatch):  # the pure-shear limit: on the general models' loop
         from ncstab.paths.compiled_rigid import RigidStages
 
-        return RigidStages(batch, general_runner(not batch.has_total_form)), f"{engine} with the pure-shear limit's kernel"
-    from ncstab.paths.compiled_stages import CompiledStages
+        stages = RigidStages(batch, general_runner(rate_form, plain), plain)
+        engine = f"{engine} with the pure-shear limit's kernel"
+    else:
+        from ncstab.paths.compiled_stages import CompiledStages
 
-    return CompiledStages(batch, compiled.stage_runner(batch)), engine
+        stages = CompiledStages(batch, compiled.stage_runner(batch, plain))
+    stages.plain = plain
+    return stages, engine

@@ -22,6 +22,7 @@ indicators are those of a general layout (:mod:`ncstab.paths.events`, part 1b).
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numba
@@ -168,9 +169,9 @@ def general_part(
             angle = ctl[at + 3] + ctl[at + 4] * lam
             rate = ctl[at + 2] * ctl[at + 4]
             if i == int(ctl[at + 5]):
-                return ctl[at] + ctl[at + 2] * np.cos(angle), rate * -np.sin(angle)
+                return ctl[at] + ctl[at + 2] * math.cos(angle), rate * -math.sin(angle)
             if i == int(ctl[at + 6]):
-                return ctl[at + 1] + ctl[at + 2] * np.sin(angle), rate * np.cos(angle)
+                return ctl[at + 1] + ctl[at + 2] * math.sin(angle), rate * math.cos(angle)
         return offset + slope * lam, slope
 
     @njit

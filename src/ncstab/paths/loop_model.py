@@ -15,6 +15,7 @@ follows operation for operation).
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numba
@@ -58,7 +59,7 @@ def model_part(rate_form: bool, signed_gap: Any, significant: Any, target_indica
         vertical = geo[0] - y[0]
         horizontal = geo[1] - y[1]
         length = np.sqrt(vertical * vertical + horizontal * horizontal)
-        alpha = np.arctan2(horizontal, vertical) if p[alpha_slot] > 0 else np.nan
+        alpha = math.atan2(horizontal, vertical) if p[alpha_slot] > 0 else np.nan
         law(length, alpha, vertical / length, horizontal / length, t_in, p.ctypes, ev.ctypes)  # ev[2:12], ev[16]
         ev[0] = length
         ev[1] = alpha
@@ -86,7 +87,7 @@ def model_part(rate_form: bool, signed_gap: Any, significant: Any, target_indica
     def angle(ev):
         # alpha = arctan2(horizontal, vertical), computed once where the law did not need it
         if np.isnan(ev[1]):  # evaluate() leaves it NaN where the law does not read it
-            ev[1] = np.arctan2(ev[15], ev[14])
+            ev[1] = math.atan2(ev[15], ev[14])
         return ev[1]
 
     @hot
@@ -146,7 +147,7 @@ def model_part(rate_form: bool, signed_gap: Any, significant: Any, target_indica
         # a cycle's plane being both dofs of the diamond
         if ctl[0] > 0:
             angle = ctl[8] + ctl[9] * lam
-            cos, sin = np.cos(angle), np.sin(angle)
+            cos, sin = math.cos(angle), math.sin(angle)
             rate = ctl[7] * ctl[9]
             return ctl[5] + ctl[7] * cos, ctl[6] + ctl[7] * sin, rate * -sin, rate * cos
         return ctl[1] + ctl[3] * lam, ctl[2] + ctl[4] * lam, ctl[3], ctl[4]
@@ -225,7 +226,7 @@ def model_part(rate_form: bool, signed_gap: Any, significant: Any, target_indica
         s01 = 0.5 * (k01 + k10)
         s11 = 0.5 * (k11 + k11)
         mean = 0.5 * (s00 + s11)
-        radius = np.hypot(0.5 * (s00 - s11), s01)
+        radius = math.hypot(0.5 * (s00 - s11), s01)
         out[1] = significant(mean - radius, scale)
         out[2] = significant(m00 * m11 - m01 * m10, square)
         difference = k00 - k11

@@ -15,12 +15,12 @@ NORMAL_MODES = ("deformable", "rigid")
 #: PathOptions.initial_step estimated per case.
 AUTO = "auto"
 #: Steppers of the path engine (PathOptions.backend).
-BACKENDS = ("auto", "compiled")
+BACKENDS = ("auto", "compiled", "python")
 #: Backends that were retired, and what became of them (an old study file that names
 #: one gets this sentence in its error).
 RETIRED_BACKENDS = {
     "numpy": "the numpy stepper was retired: every system runs on the compiled "
-    "stepper, so remove the option (backend = \"auto\" or \"compiled\" ask for the same)",
+    "stepper, so remove the option (backend = \"auto\" chooses how it runs)",
 }
 
 
@@ -63,11 +63,16 @@ class PathOptions:
     event_tol
         Width of the arclength bracket within which events are located.
     backend
-        ``"auto"`` (default) or ``"compiled"``, the same: the compiled stepper
-        (numba, one compiled loop per case on every core,
-        :mod:`ncstab.paths.compiled`), which covers every system and
-        programme; the archive's ``engine`` attribute says which version ran.
-        ``"numpy"`` (the numpy stepper, retired) is an error that says so.
+        How the compiled stepper's loop (:mod:`ncstab.paths.compiled`), which
+        covers every system and programme, runs: ``"compiled"`` as numba's
+        machine code (compiled once per machine, about a minute per form of
+        law); ``"python"`` as the same text in plain Python (the same numbers,
+        bit for bit; slow); ``"auto"`` (default) the machine code where numba's
+        cache holds it, plain Python for a small study that would otherwise
+        wait for the compiler, else the machine code
+        (:mod:`ncstab.paths.loop_route`).  The archive's ``engine`` attribute
+        says which numba and kernels.  ``"numpy"`` (the numpy stepper,
+        retired) is an error that says so.
     """
 
     rtol: float = 1e-10

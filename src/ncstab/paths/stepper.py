@@ -40,6 +40,7 @@ from ncstab.paths.recorder import Recorder, state_limit
 from ncstab.paths.rhs import StateLayout
 from ncstab.paths.status import RUNNING
 from ncstab.paths.tangent_field import StageArrays
+from ncstab.plain_python import PLAIN_ERRORS
 from ncstab.sizes import available_memory
 
 __all__ = ["BatchStepper", "follow_cases"]
@@ -87,6 +88,7 @@ class BatchStepper(CaseEnds):
         options: PathOptions,
         secondary_contacts: str,
         progress: Callable[[int], None] | None,
+        plain: bool | None = None,
     ) -> None:
         self.batch, self.programme, self.values, self.options = batch, programme, values, options
         self.progress = progress
@@ -127,7 +129,7 @@ class BatchStepper(CaseEnds):
         self.over_length = np.zeros(size)
         self.over_degenerate = np.zeros(size, dtype=bool)
         self.degenerate_length = np.zeros(size)
-        self.compiled, self.engine = choose_engine(batch, programme, options)
+        self.compiled, self.engine = choose_engine(batch, programme, options, plain)
 
     @property
     def probe_step(self) -> float:
@@ -221,4 +223,31 @@ def follow_cases(
     -------
     CaseResult
     """
-    return BatchStepper(batch, programme, values, options, secondary_contacts, progress).run()
+    stepper = BatchStepper(batch, programme, values, options, secondary_contacts, progress)
+    if not stepper.compiled.plain:
+        return stepper.run()
+    ended = []
+
+    def counted(count: int) -> None:
+        ended.append(count)
+        if progress is not None:
+            progress(count)
+
+    stepper.progress = counted
+    try:
+        with np.errstate(all="ignore"):  # inf and NaN as in the machine code, no warnings
+            return stepper.run()
+    except PLAIN_ERRORS:
+        # The plain text raised where the machine code gives inf or NaN (a division by
+        # zero between two Python floats): the batch again, compiled.  The progress bar
+        # is not told twice of the cases that ended before.
+        already = sum(ended)
+
+        def again(count: int) -> None:
+            nonlocal already
+            told = min(count, already)
+            already -= told
+            if progress is not None and count > told:
+                progress(count - told)
+
+        return BatchStepper(batch, programme, values, options, secondary_contacts, again, plain=False).run()
