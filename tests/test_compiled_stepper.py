@@ -513,6 +513,7 @@ def test_without_numba_the_engine_asks_for_it(monkeypatch):
 def test_backend_option_is_validated():
     assert PathOptions().backend == "auto"
     assert PathOptions(backend="compiled").backend == "compiled"
+    assert PathOptions(backend="python").backend == "python"
     with pytest.raises(ValueError, match="backend"):
         PathOptions(backend="fortran")
     with pytest.raises(ValueError, match=r"PathOptions\.backend"):

@@ -4,7 +4,7 @@
 renames it over the destination only once the file is complete, so an
 interrupted run never leaves half a file and never spoils a good archive; a
 temporary left by a killed process is removed by the next run on that output
-(:func:`remove_stale_temporaries`).  Every variable carries a checksum
+(:mod:`ncstab.studies.atomic_files`).  Every variable carries a checksum
 (:mod:`ncstab.studies.checksums`).  :func:`open_study` reads an archive fully
 into memory, checks the checksums and the archive's invariants
 (:mod:`ncstab.studies.verification`) and raises
@@ -17,14 +17,13 @@ from __future__ import annotations
 
 import contextlib
 import os
-import re
-import secrets
 from collections.abc import Iterator
 from pathlib import Path as FilePath
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ncstab.studies.atomic_files import atomic_destination
 from ncstab.studies.checksums import DIGEST_ATTRIBUTE, format_digests, variable_digest
 from ncstab.studies.errors import ArchiveError, write_error
 
@@ -32,7 +31,6 @@ if TYPE_CHECKING:  # pragma: no cover - xarray is imported when an archive is us
     import xarray as xr
 
 __all__ = [
-    "atomic_destination",
     "COMPRESSION",
     "ENGINE",
     "INTEGER_FILL_VALUE",
@@ -41,7 +39,6 @@ __all__ = [
     "normalise_dataset",
     "open_study",
     "open_study_lazily",
-    "remove_stale_temporaries",
     "with_load_level",
     "write_dataset",
 ]
@@ -66,8 +63,6 @@ INTEGER_FILL_VALUE = -1
 #: none of them takes.
 NETCDF_DEFAULT_INT_FILL = -2147483647
 _MINUS_ONE_IS_A_VALUE = ("branch_index",)
-#: Random part of a temporary file's name (hex digits).
-_TEMPORARY_TOKEN = 8
 
 
 def _normal_attribute(value: Any) -> Any:
@@ -182,13 +177,6 @@ def _with_digests(dataset: xr.Dataset) -> xr.Dataset:
     return dataset
 
 
-def _default_mode() -> int:
-    """File mode a plain ``open(..., "w")`` would give: 0o666 less the umask."""
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return 0o666 & ~mask
-
-
 def write_dataset(dataset: xr.Dataset, path: str | os.PathLike[str]) -> FilePath:
     """Write a study's Dataset to a NetCDF-4 archive, atomically.
 
@@ -237,74 +225,6 @@ def write_dataset(dataset: xr.Dataset, path: str | os.PathLike[str]) -> FilePath
             raise
         raise named from error
     return destination
-
-
-def _temporary_pattern(destination: FilePath) -> re.Pattern[str]:
-    """Names of the temporaries :func:`atomic_destination` makes for ``destination``."""
-    return re.compile(rf"\.{re.escape(destination.name)}\.[0-9a-f]{{{_TEMPORARY_TOKEN}}}\.(tmp|part)")
-
-
-@contextlib.contextmanager
-def atomic_destination(destination: FilePath, suffix: str = ".tmp") -> Iterator[FilePath]:
-    """Yield a temporary path beside ``destination``; on success it replaces it.
-
-    The temporary, ``.<name>.<8 hex digits><suffix>`` (``suffix`` is
-    ``".tmp"`` or ``".part"``), is created exclusively, synced to disk, given
-    the default file mode and renamed over ``destination`` (:func:`os.replace`,
-    atomic on one file system).  If anything fails -- an exception or an
-    interrupt -- the temporary is removed and ``destination`` is left as it
-    was: never a half-written file.  A process killed outright leaves the
-    temporary behind; :func:`remove_stale_temporaries` removes it.
-    """
-    if suffix not in (".tmp", ".part"):
-        raise ValueError(f"a temporary's suffix is '.tmp' or '.part', not {suffix!r}")
-    while True:
-        temporary = destination.with_name(f".{destination.name}.{secrets.token_hex(_TEMPORARY_TOKEN // 2)}{suffix}")
-        try:
-            os.close(os.open(temporary, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o600))
-            break
-        except FileExistsError:  # pragma: no cover - 1 chance in 4e9
-            continue
-    try:
-        yield temporary
-        with open(temporary, "rb+") as written:
-            os.fsync(written.fileno())
-        os.chmod(temporary, _default_mode())
-        os.replace(temporary, destination)
-    except BaseException:
-        temporary.unlink(missing_ok=True)
-        raise
-
-
-def remove_stale_temporaries(destination: str | os.PathLike[str]) -> list[FilePath]:
-    """Remove the temporaries a killed process left for ``destination`` and its figures.
-
-    Those of :func:`atomic_destination` (``.<name>.<hex>.tmp``/``.part``) and
-    of the figures drawn beside the archive
-    (``.<stem>_<kind>.png.<pid>.<hex>.tmp``, :func:`ncstab.plotting.draw_figures`).
-    Call it only while holding the output's lock
-    (:class:`~ncstab.studies.locks.OutputLock`): no other run is writing them.
-
-    Returns
-    -------
-    list of pathlib.Path
-        The files removed.
-    """
-    destination = FilePath(destination)
-    patterns = [
-        _temporary_pattern(destination),
-        re.compile(rf"\.{re.escape(destination.stem)}_[a-z0-9_]+\.png\.\d+\.[0-9a-f]{{12}}\.tmp"),
-    ]
-    removed = []
-    try:
-        entries = list(os.scandir(destination.parent))
-    except OSError:
-        return removed
-    for entry in entries:
-        if any(pattern.fullmatch(entry.name) for pattern in patterns) and entry.is_file(follow_symlinks=False):
-            FilePath(entry.path).unlink(missing_ok=True)
-            removed.append(FilePath(entry.path))
-    return removed
 
 
 #: The alias of the variable ``load``: ``ds.load`` is xarray's ``Dataset.load`` method,

@@ -49,7 +49,8 @@ from ncstab.paths.api import CaseRange, ParameterGrid, case_batch
 from ncstab.paths.stepper import follow_cases
 from ncstab.paths.result import PathResult
 from ncstab.paths.programme import EVENTS
-from ncstab.studies.archive import atomic_destination, open_study
+from ncstab.studies.archive import open_study
+from ncstab.studies.atomic_files import atomic_destination
 from ncstab.studies.archive_selection import archive_selection
 from ncstab.studies.chunk_plan import (
     DEFAULT_CHUNK_CASES,

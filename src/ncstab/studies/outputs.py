@@ -3,7 +3,7 @@
 :func:`claim_output` is what every run (in process or in chunks) does before
 it computes anything: it takes the output's lock
 (:class:`~ncstab.studies.locks.OutputLock`), removes the temporary files a
-killed run left (:func:`~ncstab.studies.archive.remove_stale_temporaries`),
+killed run left (:func:`~ncstab.studies.atomic_files.remove_stale_temporaries`),
 and refuses to start over on top of the finished chunks of an earlier run
 unless told to resume or to overwrite them.  :func:`check_existing_output` is
 the contract on what is already at the output's path: nothing, or an ncstab
@@ -22,7 +22,7 @@ import stat
 from collections.abc import Callable, Iterator
 from pathlib import Path as FilePath
 
-from ncstab.studies.archive import remove_stale_temporaries
+from ncstab.studies.atomic_files import remove_stale_temporaries
 from ncstab.studies.errors import OutputPathError, PartsExistError
 from ncstab.studies.locks import OutputLock
 

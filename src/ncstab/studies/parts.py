@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ncstab.studies.archive import atomic_destination
+from ncstab.studies.atomic_files import atomic_destination
 from ncstab.studies.errors import ResumeError, write_error
 from ncstab.studies.streaming import EncodedChunk
 from ncstab.studies.study import Study
