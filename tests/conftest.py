@@ -26,17 +26,14 @@ from __future__ import annotations
 import os
 import shutil
 import subprocess
-import sys
 import tempfile
 import time
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
 import pytest
 from hypothesis import settings
 
-import ncstab
 from ncstab.systems import DiamondChain
 
 # Defaults for every property test; each test still states its own
@@ -103,29 +100,21 @@ WARM_LAWS = ("cundall_strack", "weakly_hypoelastic", "mcnamara", "turco")
 #: The general models' loops (one per form, :mod:`ncstab.paths.loop_general`), warmed by a
 #: column of four links (three dofs, a total form) and a ring of four grains (a rate law).
 WARM_GENERAL = ("general-total", "general-rate")
-#: Seconds a warm-up process may take (a form's loop compiles in about 30 s on one core).
-WARM_TIMEOUT = 900
-#: Compiles the loop of each law named on the command line, through the public path.
-WARM_SCRIPT = """
-import sys
-from ncstab.paths import PathOptions, SystemSpec, follow
 
-for law in sys.argv[1:]:
-    options = PathOptions(backend="compiled", max_step=1.0)
-    if law == "general-total":
-        programme = [{"hold": {"F2": 0.0, "F3": 0.0}, "drive": {"F1": 1e-3}}]
-        path = follow(SystemSpec("column", links=4), None, programme, {}, options)
-    elif law == "general-rate":
-        programme = [{"hold": {"F2": 0.0, "F4": 0.0}, "drive": {"D1": 0.01, "D3": 0.01}}]
-        path = follow(SystemSpec("ring", grains=4, secondary_contacts="ignore"), "cundall_strack", programme,
-                      {"gamma": 1.0}, options)
-    else:
-        programme = [{"hold": {"F2": 0.0}, "drive": {"D1": 0.01}}]
-        path = follow(SystemSpec(secondary_contacts="ignore"), law, programme, {"gamma": 1.0}, options)
-    engine = path.results[0].engine
-    if not engine.startswith("compiled stepper"):
-        sys.exit(f"{law} did not run on the compiled stepper: {engine}")
-"""
+
+def warm_compiled_loops(laws: tuple[str, ...], processes: int) -> None:
+    """Compile the loops of ``laws`` into the cache of ``$NCSTAB_CACHE_DIR``, in ``processes``
+    Python processes at once (:func:`ncstab.engine_warmup.compile_loops`, as ``ncstab cache
+    compile`` does).
+
+    Raises
+    ------
+    RuntimeError
+        When a process fails, with the last line it printed.
+    """
+    from ncstab.engine_warmup import compile_loops
+
+    compile_loops(laws, processes)
 
 
 def _distributed(config: pytest.Config) -> bool:
@@ -134,47 +123,6 @@ def _distributed(config: pytest.Config) -> bool:
     if workers == "auto" or workers == "logical":
         workers = os.cpu_count() or 1
     return isinstance(workers, int) and workers > 1
-
-
-def _by_form(laws: tuple[str, ...], processes: int) -> list[tuple[str, ...]]:
-    """``laws`` in at most ``processes`` groups, the laws of one form (rate or total) together:
-    the compiled loop is one per form (the laws add their small kernels), so no two
-    processes compile the same loop."""
-    from ncstab.laws.registry import law_definition
-
-    forms: dict[bool, list[str]] = {}
-    for law in laws:
-        total = law == "general-total" if law.startswith("general-") else law_definition(law).has_total_form
-        forms.setdefault(total, []).append(law)
-    groups: list[list[str]] = [[] for _ in range(max(1, min(processes, len(forms))))]
-    for k, members in enumerate(forms.values()):
-        groups[k % len(groups)].extend(members)
-    return [tuple(group) for group in groups]
-
-
-def warm_compiled_loops(laws: tuple[str, ...], processes: int) -> None:
-    """Compile the loops of ``laws`` into the cache of ``$NCSTAB_CACHE_DIR``, in ``processes``
-    Python processes at once (the same ncstab as this process's).
-
-    Raises
-    ------
-    RuntimeError
-        When a process fails, with the last line it printed.
-    """
-    source = str(Path(ncstab.__file__).resolve().parent.parent)
-    path = os.pathsep.join([source, *filter(None, [os.environ.get("PYTHONPATH")])])
-    environment = dict(os.environ, PYTHONPATH=path)
-    groups = _by_form(laws, processes)
-
-    def compile_group(group: tuple[str, ...]) -> subprocess.CompletedProcess[str]:
-        return subprocess.run([sys.executable, "-c", WARM_SCRIPT, *group], capture_output=True, text=True,
-                              env=environment, timeout=WARM_TIMEOUT, check=False)
-
-    with ThreadPoolExecutor(processes) as pool:
-        for group, done in zip(groups, pool.map(compile_group, groups)):
-            if done.returncode != 0:
-                last = (done.stderr.strip().splitlines() or [f"exit code {done.returncode}"])[-1]
-                raise RuntimeError(f"{', '.join(group)}: {last}")
 
 
 @pytest.hookimpl(tryfirst=True)

@@ -235,3 +235,41 @@ def test_a_read_only_folder_gives_exit_code_3_and_names_what_stayed(root, capsys
                         r"\(and 1 more\); freed 1.01 kB \(2 files\); the rest is kept\n", err), err
     assert "Traceback" not in err and "freed" not in out
     assert len(list(stuck.iterdir())) == 2
+
+
+def test_compile_compiles_every_loop_in_processes_by_form_and_says_so(capsys):
+    """On the session's cache (the warm-up compiled the loops, so it takes seconds): four
+    items, a law of each form for the diamond's loops and the general models' two, in two
+    processes, each the items of one form."""
+    from ncstab.engine_warmup import ENGINE_ITEMS, groups_by_form
+
+    assert groups_by_form(ENGINE_ITEMS, 2) == [("mcnamara", "general-total"), ("cundall_strack", "general-rate")]
+    (single,) = groups_by_form(ENGINE_ITEMS, 1)
+    assert sorted(single) == sorted(ENGINE_ITEMS)
+    code, out, err = _ncstab(capsys, "compile")
+    assert (code, err) == (0, "")
+    lines = out.splitlines()
+    assert lines[0].startswith("compiling the compiled stepper's 4 loops into ")
+    assert sorted(line.split(" in ")[0] for line in lines[1:3]) == [
+        "  compiled for cundall_strack, general-rate", "  compiled for mcnamara, general-total"]
+    assert re.fullmatch(r"done in \d+ s: studies of any size now start at once", lines[3])
+
+
+def test_compile_that_fails_is_one_line_and_exit_code_3(capsys, monkeypatch):
+    import ncstab.engine_warmup as warmup
+
+    def failing(items, processes, done=None):
+        raise RuntimeError("mcnamara, general-total: numba.core.errors.TypingError: ...")
+
+    monkeypatch.setattr(warmup, "compile_loops", failing)
+    code, out, err = _ncstab(capsys, "compile", "--processes", "1")
+    assert code == 3
+    assert err == ("ncstab cache: compiling failed: mcnamara, general-total: numba.core.errors.TypingError: ...; "
+                   "the loops compiled before it stay cached\n")
+
+
+def test_compile_refuses_a_process_count_below_one(capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(["cache", "compile", "--processes", "0"])
+    assert exit_.value.code == 2
+    assert "--processes: must be a whole number of at least 1, not '0'" in capsys.readouterr().err

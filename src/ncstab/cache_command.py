@@ -2,6 +2,8 @@
 
 ``ncstab cache`` (or ``ncstab cache info``) prints the cache root and one line
 per cache folder of :data:`ncstab.cache.CACHE_KINDS`: its files and their size.
+``ncstab cache compile`` compiles the compiled stepper's loops now
+(:mod:`ncstab.engine_warmup`), so that no later study waits for the compiler.
 ``ncstab cache clear`` removes those folders (:func:`ncstab.cache.clear_cache`)
 and says what it freed; a root that does not exist has nothing to clear (exit
 code 0).  A file that cannot be removed is the error of a write that failed
@@ -79,10 +81,39 @@ def _clear() -> int:
                kept=f"{freed}; the rest is kept")
 
 
+def _compile(processes: int | None) -> int:
+    """``ncstab cache compile``: compile every loop of the compiled stepper now; exit code 0,
+    or a :class:`~ncstab.studies.errors.RunError` (exit code 3) naming what failed."""
+    import os
+
+    from ncstab.cache import cache_root
+    from ncstab.engine_warmup import ENGINE_ITEMS, compile_loops, groups_by_form
+    from ncstab.studies.errors import RunError
+
+    if processes is None:
+        processes = min(2, os.cpu_count() or 1)
+    groups = groups_by_form(ENGINE_ITEMS, processes)
+    print(f"compiling the compiled stepper's 4 loops into {cache_root() / 'compiled'} in {len(groups)} "
+          f"process{'es' if len(groups) > 1 else ''} (30-90 s a loop on 2 cores, once per machine) ...", flush=True)
+
+    def done(group: tuple[str, ...], seconds: float) -> None:
+        print(f"  compiled for {', '.join(group)} in {seconds:.0f} s", flush=True)
+
+    try:
+        seconds = compile_loops(ENGINE_ITEMS, processes, done)
+    except (OSError, RuntimeError) as error:
+        raise RunError(f"compiling failed: {error}", kept="the loops compiled before it stay cached") from None
+    print(f"done in {seconds:.0f} s: studies of any size now start at once")
+    return 0
+
+
 def command_cache(args: argparse.Namespace) -> int:
-    """``ncstab cache [info]``: print the caches (:func:`cache_lines`); ``clear``: remove them."""
+    """``ncstab cache [info]``: print the caches (:func:`cache_lines`); ``clear``: remove them;
+    ``compile``: compile the compiled stepper's loops now."""
     if args.action == "clear":
         return _clear()
+    if args.action == "compile":
+        return _compile(args.processes)
     print("\n".join(cache_lines()))
     return 0
 
@@ -95,12 +126,30 @@ def add_cache_parser(sub: Any, parents: list[argparse.ArgumentParser]) -> None:
         description="Print the cache root ($NCSTAB_CACHE_DIR, else $XDG_CACHE_HOME/ncstab, else "
         "~/.cache/ncstab) and, for each of ncstab's cache folders, its files and their size. "
         "'ncstab cache clear' removes those folders (what they held is derived again when needed; "
-        "nothing else under the root is touched). Exit code 0; 3: a file could not be removed.",
-        usage="%(prog)s [-h] [--debug] [info | clear]",
+        "nothing else under the root is touched). 'ncstab cache compile' compiles the engine's "
+        "loops now, once per machine (a small study runs without them; a large one would compile "
+        "them first). Exit code 0; 3: a file could not be removed, or compiling failed.",
+        usage="%(prog)s [-h] [--debug] [info | clear | compile [--processes N]]",
         parents=parents,
     )
     actions = cache.add_subparsers(dest="action", metavar="ACTION")
     actions.add_parser("info", help="the cache root and each cache folder's files and size (the default)",
                        parents=parents)
     actions.add_parser("clear", help="remove ncstab's cache folders; say what was freed", parents=parents)
-    cache.set_defaults(handler=command_cache, action="info")
+    compile_ = actions.add_parser(
+        "compile", help="compile the compiled stepper's loops now (30-90 s each, once per machine)", parents=parents
+    )
+    compile_.add_argument("--processes", type=_positive, metavar="N", default=None,
+                          help="processes compiling side by side (default: 2, or 1 on one core)")
+    cache.set_defaults(handler=command_cache, action="info", processes=None)
+
+
+def _positive(text: str) -> int:
+    """A whole number of at least 1 (``--processes``)."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be a whole number of at least 1, not {text!r}")
+    return value
