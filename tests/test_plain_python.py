@@ -140,3 +140,20 @@ def test_a_plain_run_that_raises_runs_again_compiled(monkeypatch) -> None:
     assert calls["plain"] == 1
     assert sorted(np.asarray(path.status).ravel().tolist()) == ["finished", "finished"]
     assert sum(told) == 2  # each case told once, across both runs
+
+
+def test_a_chunk_of_a_large_study_weighs_the_study_s_work_not_its_own(monkeypatch) -> None:
+    """``--chunk-cases 1`` on a sweep must not run every chunk as plain Python: the route
+    counts the study's cases (``study_cases``), as the chunked runner passes them."""
+    from ncstab.paths import loop_route
+    from ncstab.paths.api import case_batch, resolve_model
+    from ncstab.paths.engine_choice import choose_engine
+    from ncstab.paths.programme import parse_programme
+
+    monkeypatch.setattr(loop_route, "machine_code_cached", lambda entry: False)  # a new machine
+    model = resolve_model(SystemSpec(secondary_contacts="ignore"), ["mcnamara"])
+    batch = case_batch(model.laws[0], model, {"gamma": np.array([1.0])}, 1)
+    programme = parse_programme([{"hold": {"F2": 0.0}, "drive": {"D1": 0.1}}])
+    alone, _ = choose_engine(batch, programme, PathOptions())
+    chunk, _ = choose_engine(batch, programme, PathOptions(), study_cases=4096)
+    assert alone.plain and not chunk.plain

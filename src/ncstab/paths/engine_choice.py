@@ -20,13 +20,16 @@ __all__ = ["choose_engine"]
 
 
 def choose_engine(
-    batch: Any, programme: LoadingProgramme, options: PathOptions, plain: bool | None = None
+    batch: Any, programme: LoadingProgramme, options: PathOptions, plain: bool | None = None,
+    study_cases: int | None = None,
 ) -> tuple[CompiledStages, str]:
     """The compiled stage loop bound to ``batch``, and the engine in words (the archive's
     ``engine`` attribute: ``compiled stepper (numba X.Y.Z)`` and the model's kernel).
 
     ``plain``: whether the loop runs as plain Python (:mod:`ncstab.plain_python`); by
-    default as :func:`ncstab.paths.loop_route.runs_plain` says for ``options.backend``.  Either route gives the
+    default as :func:`ncstab.paths.loop_route.runs_plain` says for ``options.backend``, the
+    work counted over ``study_cases`` cases where the batch is a chunk of a larger study
+    (its other chunks will need the machine code too).  Either route gives the
     same numbers, so the engine in words does not say which ran.
 
     Raises
@@ -49,7 +52,8 @@ def choose_engine(
     general = isinstance(batch, (ModelBatch, RigidCaseBatch))
     if plain is None:
         entry = general_runner(rate_form).run if general else compiled.loop_entry(rate_form)
-        plain = runs_plain(options.backend, batch.size, StateLayout(batch.n_dof, batch.n_internal).size, entry)
+        cases = max(batch.size, study_cases or 0)
+        plain = runs_plain(options.backend, cases, StateLayout(batch.n_dof, batch.n_internal).size, entry)
     engine = f"compiled stepper (numba {compiled.numba.__version__})"
     if isinstance(batch, ModelBatch):
         from ncstab.paths.compiled_general import GeneralStages

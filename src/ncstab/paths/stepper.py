@@ -89,6 +89,7 @@ class BatchStepper(CaseEnds):
         secondary_contacts: str,
         progress: Callable[[int], None] | None,
         plain: bool | None = None,
+        study_cases: int | None = None,
     ) -> None:
         self.batch, self.programme, self.values, self.options = batch, programme, values, options
         self.progress = progress
@@ -129,7 +130,7 @@ class BatchStepper(CaseEnds):
         self.over_length = np.zeros(size)
         self.over_degenerate = np.zeros(size, dtype=bool)
         self.degenerate_length = np.zeros(size)
-        self.compiled, self.engine = choose_engine(batch, programme, options, plain)
+        self.compiled, self.engine = choose_engine(batch, programme, options, plain, study_cases)
 
     @property
     def probe_step(self) -> float:
@@ -201,6 +202,7 @@ def follow_cases(
     options: PathOptions,
     secondary_contacts: str = "activate",
     progress: Callable[[int], None] | None = None,
+    study_cases: int | None = None,
 ) -> CaseResult:
     """Follow a loading programme for a batch of cases of one law.
 
@@ -218,12 +220,15 @@ def follow_cases(
         ``"activate"``, ``"ignore"`` or ``"stop"`` (see ``SystemSpec``).
     progress
         Called with the number of cases that just ended (progress bars).
+    study_cases
+        The cases of the whole study where ``batch`` is a chunk of it: the loop's route
+        (:func:`ncstab.paths.engine_choice.choose_engine`) weighs the study's work, not the chunk's.
 
     Returns
     -------
     CaseResult
     """
-    stepper = BatchStepper(batch, programme, values, options, secondary_contacts, progress)
+    stepper = BatchStepper(batch, programme, values, options, secondary_contacts, progress, study_cases=study_cases)
     if not stepper.compiled.plain:
         return stepper.run()
     ended = []

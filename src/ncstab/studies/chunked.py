@@ -135,11 +135,13 @@ def run_chunk(study: Study, law: str, start: int, stop: int) -> "xr.Dataset":
 def chunk_path(study: Study, law: str | None, start: int, stop: int) -> PathResult:
     """The followed paths of the cases ``start:stop`` of one law (``None``: a system with its own
     laws) (grid: a :class:`CaseRange`)."""
-    grid = CaseRange(ParameterGrid.from_mapping(study.parameters), start, stop)
+    whole = ParameterGrid.from_mapping(study.parameters)
+    grid = CaseRange(whole, start, stop)
     values = grid.case_values()
     model = study.model(law)
     batch = case_batch(model.laws[0], model, values, grid.size)
-    result = follow_cases(batch, study.programme, values, study.options, model.secondary_contacts)
+    result = follow_cases(batch, study.programme, values, study.options, model.secondary_contacts,
+                          study_cases=whole.size)
     return PathResult(
         model=model,
         grid=grid,

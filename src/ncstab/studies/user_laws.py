@@ -51,6 +51,9 @@ AddError = Callable[[str, str], None]
 #: Seconds of symbolic work (building a law from its formulas and classifying it) one
 #: user law may take: within the formulas' limits the slowest measured took 2 s.
 SYMBOLIC_SECONDS = 30.0
+#: Seconds after which an expired time limit raises again while its block goes on (the
+#: first :class:`SymbolicTimeout` can be dropped: see :func:`symbolic_time_limit`).
+RETRY_SECONDS = 0.05
 #: Whether user laws are classified as they are read (not when an archive's study text is checked).
 _CLASSIFY: contextvars.ContextVar[bool] = contextvars.ContextVar("ncstab_classify_user_laws", default=True)
 
@@ -67,7 +70,9 @@ def symbolic_time_limit(seconds: float | None = None) -> Iterator[None]:
 
     A ``SIGALRM`` timer, so in the main thread only (elsewhere, and where
     ``setitimer`` is missing, the block runs unbounded); an outer timer is
-    not supported (none is set by ncstab).
+    not supported (none is set by ncstab).  Once expired, it raises again every
+    :data:`RETRY_SECONDS` until the block ends: Python drops an exception raised in
+    a garbage-collector callback, and the signal may arrive during one.
     """
     seconds = SYMBOLIC_SECONDS if seconds is None else seconds
     if threading.current_thread() is not threading.main_thread() or not hasattr(signal, "setitimer"):
@@ -75,6 +80,9 @@ def symbolic_time_limit(seconds: float | None = None) -> Iterator[None]:
         return
 
     def expired(number: int, frame: object) -> None:
+        # Again in 50 ms, until the block ends: an exception raised while Python runs a
+        # garbage-collector callback (hypothesis installs one) is printed and dropped.
+        signal.setitimer(signal.ITIMER_REAL, RETRY_SECONDS)
         raise SymbolicTimeout(f"more than {seconds:g} s")
 
     previous = signal.signal(signal.SIGALRM, expired)
