@@ -84,7 +84,8 @@ def test_the_route_follows_the_backend_the_cache_and_the_work(tmp_path) -> None:
     assert runs_plain("python", 10**6, 100, warm)
     assert not runs_plain("compiled", 1, 1, cold)
     assert not runs_plain("auto", 1, 4, warm)  # cached machine code always serves
-    assert runs_plain("auto", 1, 20, cold)  # a ring of six grains, cold: plain
+    assert runs_plain("auto", 1, 14, cold)  # a ring of six grains, cold: plain
+    assert runs_plain("auto", 441, 4, cold)  # 441 cases of Ziegler's pendulum: 15 s plain
     assert not runs_plain("auto", PYTHON_WORK, 2, cold)  # a sweep: compiled
     assert evaluates_plain(100, cold) and not evaluates_plain(100, warm)
 

@@ -25,15 +25,17 @@ from typing import Any
 __all__ = ["PYTHON_ROWS", "PYTHON_WORK", "evaluates_plain", "machine_code_cached", "runs_plain"]
 
 #: The largest batch run as plain Python when the machine code is not cached yet:
-#: cases x (state size)^2.  The loop's cost per step in plain Python grows about as the
-#: square of the state size (the kernels' sums and the tangent's factorization of
-#: a small dense system).  A ring of six grains (state size 20) steps a case in about
-#: 1.5 s; compiling a loop takes 40-90 s on 2 cores (benchmarks/cold_start.py).
-PYTHON_WORK = 8 * 20**2
+#: cases x (state size)^3.  A step of the loop in plain Python costs about as the cube
+#: of the state size (the tangent's factorization of a small dense system, the model's
+#: kernel): 0.5 ms per unit of this work for a whole case, measured on 441 cases of
+#: Ziegler's pendulum (state size 4: 13.5 s) and on a ring of six grains (state size
+#: 14: 1.5 s a case).  At the bound, about 30 s of plain Python, against 30-120 s of
+#: compiling (benchmarks/bench_cold_start.py).
+PYTHON_WORK = 60_000
 #: The most states a kernel evaluates as plain Python for the Dataset when its machine
 #: code is not cached yet: a ring of six grains' kernel takes about 0.2 ms a state in
-#: plain Python, and 4-8 s to compile.
-PYTHON_ROWS = 4096
+#: plain Python (3 s at the bound), and 4-8 s to compile.
+PYTHON_ROWS = 16_384
 
 
 def machine_code_cached(function: Any) -> bool:
@@ -52,7 +54,7 @@ def runs_plain(backend: str, cases: int, state_size: int, entry: Any) -> bool:
         return backend == "python"
     if machine_code_cached(entry):
         return False
-    return cases * state_size**2 <= PYTHON_WORK
+    return cases * state_size**3 <= PYTHON_WORK
 
 
 def evaluates_plain(rows: int, entry: Any) -> bool:
