@@ -88,7 +88,7 @@ def compare_sweep(name: str, run_one, values: np.ndarray, run_sweep, loop_cases:
 
 def ring(loop_cases: int) -> None:
     spec = SystemSpec("ring", grains=6, secondary_contacts="ignore")
-    options = PathOptions()
+    options = PathOptions(backend="compiled")  # the machine code in the warm-up and the timed runs
 
     def run_sweep(values):
         return ncstab.follow(spec, ["cundall_strack"], RING_PROGRAMME, {"gamma": list(values)}, options).to_dataset()
@@ -123,7 +123,7 @@ def damping() -> None:
     spec = SystemSpec("ziegler", load="follower")
     values = list(np.logspace(-4, 0, 64))
     programme = [{"drive": {"P": 2.5}, "stop_at": ["flutter_onset"]}]
-    options = PathOptions(max_step=0.1)
+    options = PathOptions(max_step=0.1, backend="compiled")
     ncstab.follow(spec, None, programme, {"b1": 1e-2, "b2": 1e-2}, options)  # warm
     path, total = timed(lambda: ncstab.follow(spec, None, programme, {"b1": values, "b2": values}, options))
     loads = path.to_dataset()["flutter_onset_load"].squeeze()

@@ -122,7 +122,9 @@ def main() -> None:
     alpha0 = np.linspace(0.3, 1.2, side)
     gg, aa = (m.ravel() for m in np.meshgrid(gamma, alpha0, indexing="ij"))
     n = gg.size
-    options = PathOptions()  # the defaults: rtol 1e-10, atol 1e-12, max_step 1, sample_step 0.02
+    # the defaults (rtol 1e-10, atol 1e-12, max_step 1, sample_step 0.02), the machine code
+    # always: the one-case warm-up would otherwise run as plain Python on a new machine
+    options = PathOptions(backend="compiled")
 
     with using_threads(args.threads):
         start = time.perf_counter()

@@ -66,6 +66,7 @@ rtol = 1e-10
 atol = 1e-12
 max_step = 1.0
 sample_step = 1.0
+backend = "compiled"
 
 [output]
 figures = ["load_displacement", "load_rotation"]
