@@ -12,6 +12,7 @@ hashed from everything it is built from and imported from there
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import inspect
 import re
@@ -55,6 +56,7 @@ def kernel_body(kernel: Callable[..., list]) -> str:
     return source[source.index(":\n") + 2 :]
 
 
+@functools.cache
 def loop_source(rate_form: bool) -> str:
     """The stage loop of every law of one form as the text of a module: the bodies of
     the four template parts (:mod:`ncstab.paths.loop_model`, :mod:`~ncstab.paths.loop_steps`,
@@ -96,6 +98,7 @@ from ncstab.paths.compiled import (
 )
 from ncstab.paths.contacts import ENTRY_NOISE, ENTRY_PROBE
 from ncstab.paths.domain_edge import EDGE_HALVINGS
+from ncstab.paths.loop_records import Case, Evaluation, Goal, Interpolant, StateAt
 from ncstab.paths.events import (
     BIFURCATION_COLUMN, CYCLE_COLUMN, INDICATOR_EVENTS, INDICATOR_GAP, SIGN_NOISE, TARGET_COLUMN, TINY, TURNING_COLUMN,
 )
@@ -106,6 +109,7 @@ rate_form = {rate_form!r}
     return header + body
 
 
+@functools.cache
 def general_loop_source(rate_form: bool) -> str:
     """The stage loop of every general model of one form as the text of a module: the
     general model parts (:mod:`ncstab.paths.loop_general`,
@@ -155,6 +159,7 @@ from ncstab.paths.contacts import ENTRY_NOISE, ENTRY_PROBE
 from ncstab.paths.domain_edge import EDGE_HALVINGS
 from ncstab.paths.events import SIGN_NOISE, TINY
 from ncstab.paths.loop_general import GEO
+from ncstab.paths.loop_records import Case, Evaluation, Goal, Interpolant, StateAt
 from ncstab.paths.over_steps import OVER_ALIGNMENT, OVER_MARGIN
 
 rate_form = {rate_form!r}
@@ -267,6 +272,6 @@ def load_module(source: str, prefix: str, plain: bool = False) -> Any:
 
     stamp = repr((GEO, INDICATOR_EVENTS, INDICATOR_GAP, SIGN_NOISE, TINY, ENTRY_PROBE, ENTRY_NOISE, EDGE_HALVINGS,
                   OVER_ALIGNMENT, OVER_MARGIN, numba.__version__, np.__version__))
-    own = (Path(__file__).parent / "compiled.py").read_text(encoding="utf-8")
+    own = "".join((Path(__file__).parent / name).read_text(encoding="utf-8") for name in ("compiled.py", "loop_records.py"))
     digest = hashlib.sha256((source + stamp + own).encode()).hexdigest()[:20]
     return load_named_module(f"{prefix}_{digest}", lambda: source, plain)

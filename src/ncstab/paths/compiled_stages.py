@@ -21,6 +21,9 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 
 from ncstab.paths.compiled import EVENT_FIELDS, Outcome, StageLoop
+from ncstab.paths.loop_records import (
+    CaseRows, EventTables, ModelRows, Outcomes, Records, StageRows, StepSettings, TurnTables,
+)
 from ncstab.paths.over_steps import reset_over_steps
 from ncstab.paths.programme import EVENTS
 from ncstab.paths.threads import thread_count
@@ -157,14 +160,11 @@ class CompiledStages:
         recorder.reserve(int(recorder.count[cases].max()) + 1 if cases.size else 0)
         stages = stepper.stages
         count_before = recorder.count[cases].copy()
+        stage_number = int(stepper.stage_index[cases[0]]) if cases.size else 0
         self._run_shared(self.starter, cases.astype(np.int64), (
-            stepper.y, stepper.derivative, stepper.indicators, stepper.arclength,
-            stages.force_controlled, self.control_rows(stages), stages.lam_end, stages.target_sign, stages.orientation,
-            stages.reference, np.ascontiguousarray(stages.secondary_state, dtype=np.int64), stages.cycles_done,
-            self.law, self.parameters, self.geometry,
-            stepper.stage_index[cases[0]] if cases.size else 0,
-            self.recorded(stepper), recorder.count,
-            stepper.step_size, stepper.probe_step, stepper.options.rtol, stepper.options.atol,
+            self._case_rows(stepper), self._stage_rows(stages, np.ascontiguousarray(stages.secondary_state, dtype=np.int64)),
+            Records(self.recorded(stepper), recorder.count, stage_number), self._model_rows(),
+            stepper.probe_step, self._settings(stepper.options),
         ))
         self.after_call(stepper, cases, count_before)
 
@@ -200,20 +200,11 @@ class CompiledStages:
                 lam_before, count_before = stepper.y[cases, stepper.layout.lam], recorder.count[cases]
                 secondary_state = np.ascontiguousarray(stages.secondary_state, dtype=np.int64)
                 arguments = (
-                    stepper.y, stepper.derivative, stepper.indicators,
-                    stepper.step_size, stepper.arclength, stepper.accepted, stepper.rejected, stepper.located,
-                    stages.force_controlled, self.control_rows(stages), stages.lam_end,
-                    stages.target_sign, stages.orientation, stages.reference, secondary_state,
-                    stepper.branch_size, stepper.over_length, stepper.over_degenerate, stepper.degenerate_length,
-                    stages.cycles_done, int(stepper.turns.turns[k]), int(stepper.turns.first[k]),
-                    turn_closed, turn_values, (stages.switch != 0) & ~stages.switched,
-                    self.law, self.parameters, self.geometry, stepper.stop_table[k], stepper.break_columns,
-                    event_columns,
-                    found, values, stage, int(k), self.recorded(stepper),
-                    recorder.count, self.code, self.detail, stepper.options.rtol, stepper.options.atol,
-                    stepper.options.newton_tol, stepper.options.newton_max_iter,
-                    stepper.options.min_step, stepper.options.max_step, stepper.options.max_steps,
-                    stepper.options.event_tol, stepper.options.stored_spacing, stepper.options.max_pieces,
+                    self._case_rows(stepper), self._stage_rows(stages, secondary_state),
+                    TurnTables(int(stepper.turns.turns[k]), int(stepper.turns.first[k]), turn_closed, turn_values),
+                    EventTables(stepper.stop_table[k], stepper.break_columns, event_columns, found, values, stage),
+                    Records(self.recorded(stepper), recorder.count, int(k)), Outcomes(self.code, self.detail),
+                    self._model_rows(), self._settings(stepper.options),
                 )
                 self._run_shared(self.runner, cases.astype(np.int64), arguments)
                 self.after_call(stepper, cases, count_before)
@@ -261,6 +252,37 @@ class CompiledStages:
         pieces = stepper.options.pieces(stepper.next_step_lengths(paused))
         fits = stepper.recorder.fits(paused, pieces)
         stepper.fail_memory(paused[~fits])
+
+    @staticmethod
+    def _case_rows(stepper: BatchStepper) -> CaseRows:
+        """The stepper's per-case arrays the loop reads and writes."""
+        return CaseRows(
+            stepper.y, stepper.derivative, stepper.indicators, stepper.step_size, stepper.arclength, stepper.accepted,
+            stepper.rejected, stepper.located, stepper.branch_size, stepper.over_length, stepper.over_degenerate,
+            stepper.degenerate_length,
+        )
+
+    def _stage_rows(self, stages: Any, secondary_state: np.ndarray) -> StageRows:
+        """The stage's per-case arrays, its contact states ``secondary_state`` (int64, which
+        the loop switches in place)."""
+        return StageRows(
+            stages.force_controlled, self.control_rows(stages), stages.lam_end, stages.target_sign,
+            stages.orientation, stages.reference, secondary_state, stages.cycles_done,
+            (stages.switch != 0) & ~stages.switched,
+        )
+
+    def _model_rows(self) -> ModelRows:
+        """The law's callback and each case's parameters and geometry."""
+        return ModelRows(self.law, self.parameters, self.geometry)
+
+    @staticmethod
+    def _settings(options: Any) -> StepSettings:
+        """The options the loop reads, typed as it compiles them."""
+        return StepSettings(
+            float(options.rtol), float(options.atol), float(options.newton_tol), int(options.newton_max_iter),
+            float(options.min_step), float(options.max_step), int(options.max_steps), float(options.event_tol),
+            float(options.stored_spacing), int(options.max_pieces),
+        )
 
     def _close_turns(self, stepper: BatchStepper, k: int, closed: np.ndarray, values: np.ndarray) -> None:
         """The turns of stage ``k`` the loop closed go into the stepper's cycle tables, in

@@ -15,6 +15,7 @@ import numpy as np
 
 from ncstab.paths.compiled import _EXTENDED, _POWER, _STAGES, Outcome, StageLoop
 from ncstab.paths.contacts import ENTRY_NOISE, ENTRY_PROBE
+from ncstab.paths.loop_records import Case, Evaluation, Goal, Interpolant, StateAt
 
 __all__ = ["cases_part"]
 
@@ -24,7 +25,7 @@ def cases_part(
     dense_coefficients, dense_value, domain_detail, dop853, drop_limit_at_bifurcation, ev_size, first_column,
     indicators, initial_step_size, last_admissible, locate, motion, motion_product, motion_size,
     next_degenerate_length, next_over_length, next_state, over_step, piece_count, project, rhs, set_reference, set_state,
-    sign, start, state_size, store_event, store_record, switch_bit, target_col, tries_degenerate, turn_record,
+    settle, sign, start, state_size, store_event, store_record, switch_bit, target_col, tries_degenerate, turn_record,
 ) -> StageLoop:
     """Define ``run_cases`` and ``start`` and return them (a template: see the module docstring)."""
     entry_probe, entry_noise = ENTRY_PROBE, ENTRY_NOISE
@@ -34,21 +35,19 @@ def cases_part(
     Outcome_BRANCH_SWITCH = Outcome.BRANCH_SWITCH
 
     @numba.njit(cache=False, error_model="numpy", nogil=True)
-    def run_cases(cases, y, derivative, indicator_table, step_size, arclength, accepted, rejected, located,
-                  force_controlled, control_rows, lam_end, target_sign, orientation, reference, secondary_state,
-                  branch_sizes, over_length, over_degenerate, degenerate_length, cycles_done, turns, first_turn,
-                  turn_closed, turn_values, switch_pending, law, parameters, geometry, stop_row, break_row,
-                  event_columns, event_found,
-                  event_values, event_stage, stage_number, recorded, record_count, code, detail, rtol, atol, newton_tol,
-                  newton_max_iter, min_step, max_step, max_steps, event_tol, sample_step, max_pieces):
+    def run_cases(cases, rows, stage, turns, events, records, outcomes, model, settings):
         """Run cases ``cases`` through their current stage (linear or cycle), one after the
-        other; see :class:`Outcome`.  ``control_rows``: each case's control path (see
-        ``control``); a turn of a cycle stage that closes sets ``turn_closed[i, first_turn
-        + turn]`` and stores (W, F1, F2, T) there in ``turn_values`` for the stepper's
-        tables (:class:`~ncstab.paths.cycle_turns.CycleTurns`).  A case with ``switch_pending`` (its stage switches
-        branch at a simple bifurcation point, not done yet) cuts its step where the
-        bifurcation column changes sign and returns there, unstored, for the stepper to
-        leave along the bifurcating branch (:mod:`ncstab.paths.branch_switching`).
+        other; see :class:`Outcome`.  The arguments are records
+        (:mod:`ncstab.paths.loop_records`): the stepper's rows, the stage's (its control
+        path per case: see ``control``), its turns, its event tables, what is stored, each
+        case's outcome, the model's rows and the options.  A turn of a cycle stage that
+        closes sets ``turns.closed[i, turns.first + turn]`` and stores (W, F1, F2, T) there
+        in ``turns.values`` for the stepper's tables
+        (:class:`~ncstab.paths.cycle_turns.CycleTurns`).  A case with
+        ``stage.switch_pending`` (its stage switches branch at a simple bifurcation point,
+        not done yet) cuts its step where the bifurcation column changes sign and returns
+        there, unstored, for the stepper to leave along the bifurcating branch
+        (:mod:`ncstab.paths.branch_switching`).
 
         Per step: a DOP853 step (projected), the step-size control, the domain
         check, the step in pieces of ``sample_step``, crossings located, the cut,
@@ -59,6 +58,17 @@ def cases_part(
         """
         if cases.size == 0:
             return
+        y, derivative, indicator_table, step_size, arclength, accepted, rejected, located = rows[:8]
+        branch_sizes, over_length, over_degenerate, degenerate_length = rows[8:]
+        force_controlled, control_rows, lam_end, target_sign, orientation, reference = stage[:6]
+        secondary_state, cycles_done, switch_pending = stage[6:]
+        turns_count, first_turn, turn_closed, turn_values = turns
+        stop_row, break_row, event_columns, event_found, event_values, event_stage = events
+        recorded, record_count, stage_number = records
+        code, detail = outcomes
+        law, parameters, geometry = model
+        min_step, max_step, max_steps = settings.min_step, settings.max_step, settings.max_steps
+        sample_step, max_pieces = settings.sample_step, settings.max_pieces
         capacity = recorded[0].shape[1]
         first = geometry[cases[0]]  # (the sizes are those of every case)
         M = state_size(y[cases[0]])
@@ -93,6 +103,7 @@ def cases_part(
         ev_end = np.empty(ev.size)
         aux_end = np.empty(aux.size)
         y_half = np.empty(M)
+        step_end = StateAt(y_new, dy_new, ev_new, aux_new)
         for i in cases:
             fc = force_controlled[i]
             ctl = control_rows[i]
@@ -102,6 +113,7 @@ def cases_part(
             sec = secondary_state[i]
             geo = geometry[i]
             set_state(p, geo, sec)
+            case = Case(fc, ctl, orient, law, p, geo)
             orient[0] = orientation[i]
             for k in range(n_motion):
                 orient[1 + k] = reference[i, k]
@@ -113,8 +125,7 @@ def cases_part(
                     y0[j] = y[i, j]
                 over = False
                 if not rate_form and over_length[i] > 0:  # an over step (over_steps)
-                    arc = over_step(over_length[i], y0, derivative[i], fc, ctl, orient, law, p, geo,
-                                    newton_tol, newton_max_iter, y_raw, y_new, dy_new, ev_new, aux_new, y_half, ev,
+                    arc = over_step(over_length[i], y0, derivative[i], case, settings, y_raw, step_end, y_half, ev,
                                     coefficients, over_degenerate[i], degenerate_length[i] > 0)
                     over_length[i] = 0.0
                     over_degenerate[i] = False
@@ -128,12 +139,11 @@ def cases_part(
                     if over:
                         h = arc
                 if not over:
-                    err = dop853(y0, derivative[i], h, rtol, atol, fc, ctl, orient, law, p, geo,
-                                 stages, y_raw, work, ev_new, aux_new)
+                    err = dop853(y0, derivative[i], h, case, settings, stages, y_raw, work, ev_new, aux_new)
                     for j in range(M):
                         y_new[j] = y_raw[j]
                     if not rate_form and np.isfinite(err) and not project(
-                        y_new, fc, ctl, law, p, geo, newton_tol, newton_max_iter, ev_new
+                        y_new, fc, ctl, law, p, geo, settings.newton_tol, settings.newton_max_iter, ev_new
                     ):
                         err = np.inf
                     accept = err <= 1.0
@@ -163,14 +173,13 @@ def cases_part(
                 have_dense = over  # (an over step has its interpolant already)
                 if pieces > 1:
                     if not have_dense:
-                        dense_coefficients(y0, y_raw, h, fc, ctl, orient, law, p, geo, stages,
-                                           coefficients, work, ev, aux)
+                        dense_coefficients(y0, y_raw, h, case, stages, coefficients, work, ev, aux)
                     have_dense = True
                     projected = True
                     for k in range(pieces - 1):
                         dense_value(y0, coefficients, (k + 1) / pieces, samples[k])
                         if not rate_form and not project(
-                            samples[k], fc, ctl, law, p, geo, newton_tol, newton_max_iter, ev
+                            samples[k], fc, ctl, law, p, geo, settings.newton_tol, settings.newton_max_iter, ev
                         ):
                             projected = False
                             break
@@ -201,16 +210,15 @@ def cases_part(
                     reason = domain_detail(y_end, ev_end, geo)  # --- the domain's edge (domain_edge): bisection
                     if reason >= 0:
                         if not have_dense:
-                            dense_coefficients(y0, y_raw, h, fc, ctl, orient, law, p, geo, stages,
-                                               coefficients, work, ev, aux)
+                            dense_coefficients(y0, y_raw, h, case, stages, coefficients, work, ev, aux)
                             have_dense = True
-                        lo = last_admissible(offset, end_at, h, y0, coefficients, fc, ctl, orient, law, p, geo,
-                                             newton_tol, newton_max_iter, event_tol, work, ev, aux)
+                        lo = last_admissible(offset, end_at, Interpolant(y0, coefficients, h), case, settings,
+                                             work, ev, aux)
                         if not (lo > offset):  # nothing admissible beyond the piece's start
                             code[i], detail[i], ended = Outcome_LEFT_DOMAIN, reason, True
                             break
-                        admissible_at(lo, h, y0, coefficients, fc, ctl, orient, law, p, geo, newton_tol,
-                                      newton_max_iter, y_end, dy_end, ev_end, aux_end)
+                        admissible_at(lo, Interpolant(y0, coefficients, h), case, settings, y_end, dy_end, ev_end,
+                                      aux_end)
                         end_at = lo
                     span = end_at - offset
                     # --- the piece's end: indicators, crossings located, cut, events, commit
@@ -231,16 +239,15 @@ def cases_part(
                         for c in range(n_columns):
                             searched = searched or (change[c] and not (c == target_column and exact_target))
                         if searched and not have_dense:
-                            dense_coefficients(y0, y_raw, h, fc, ctl, orient, law, p, geo, stages,
-                                               coefficients, work, ev, aux)
+                            dense_coefficients(y0, y_raw, h, case, stages, coefficients, work, ev, aux)
                             have_dense = True
                         for c in range(n_columns):
                             if not change[c] or (c == target_column and exact_target):
                                 continue
                             sigma[c], lower[c], upper[c] = locate(
-                                c, h, offset, span, before[c], after[c], y0, coefficients, fc, ctl,
-                                lam_end[i], target_sign[i], turn_end, orient, sec, law, p, geo,
-                                newton_tol, newton_max_iter, event_tol, ev, aux, values, located_states[c],
+                                c, offset, span, before[c], after[c], Interpolant(y0, coefficients, h), case,
+                                Goal(lam_end[i], target_sign[i], turn_end, sec), settings, Evaluation(ev, aux),
+                                values, located_states[c],
                             )
                             located[i] += 1
                         drop_limit_at_bifurcation(sigma, span, geo)
@@ -262,7 +269,7 @@ def cases_part(
                     switched = False
                     for e in range(event_columns.shape[0]):  # _store_first_events
                         c = first_column(event_columns[e], sigma)
-                        if c >= 0 and np.isfinite(sigma[c]) and sigma[c] <= reach + event_tol and not event_found[e, i]:
+                        if c >= 0 and np.isfinite(sigma[c]) and sigma[c] <= reach + settings.event_tol and not event_found[e, i]:
                             rhs(located_states[c], fc, ctl, orient, law, p, geo, work[2], ev, aux)
                             event_found[e, i], event_stage[e, i] = True, stage_number
                             store_event(event_values[e, i], arclength[i], sigma[c], lower[c], upper[c], located_states[c],
@@ -303,7 +310,7 @@ def cases_part(
                             kept = after[cut_column]
                         rhs(y_end, fc, ctl, orient, law, p, geo, dy_end, ev_end, aux_end)
                         closes_turn = cut_column == cycle_column or cut_column == target_column
-                        if ctl[0] > 0 and closes_turn and done < turns:  # a turn closes: W, F, T there
+                        if ctl[0] > 0 and closes_turn and done < turns_count:  # a turn closes: W, F, T there
                             slot = first_turn + done
                             turn_closed[i, slot] = True
                             turn_record(y_end, ev_end, turn_values[i, slot], geo)
@@ -329,7 +336,7 @@ def cases_part(
                         accepted[i] += 1
                     size = branch_size(aux_end, orient)  # the next over step
                     if not rate_form:  # plan it (over_steps)
-                        over_length[i] = next_over_length(branch_sizes[i], size, reach, newton_tol)
+                        over_length[i] = next_over_length(branch_sizes[i], size, reach, settings.newton_tol)
                         if tries_degenerate(geo):
                             degenerate = next_degenerate_length(branch_sizes[i], size, reach)
                             degenerate_length[i] = degenerate if over_length[i] > 0 else 0.0

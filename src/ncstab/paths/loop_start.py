@@ -33,14 +33,24 @@ def start_part(
         return M, n_motion, np.empty(M), np.empty(ev_size(first)), np.empty(aux_size(first)), np.empty(1 + n_motion)
 
     @numba.njit(cache=False, error_model="numpy")
-    def start(cases, y, derivative, indicator_table, arclength, force_controlled, control_rows, lam_end,
-              target_sign, orientation, reference, secondary_state, cycles_done, law, parameters, geometry,
-              stage_number, recorded, record_count, step_size, probe, rtol, atol):
+    def start(cases, rows, stage, records, model, probe, settings):
         """Cases ``cases`` start their (set up) stage: dy/ds, indicators, state stored;
         the first step where ``step_size`` is NaN (Hairer's estimate from a probe step,
-        stage_entry.probe_step)."""
+        stage_entry.probe_step).  The arguments are records (:mod:`ncstab.paths.loop_records`):
+        the stepper's rows, the stage's, what is stored, the model's rows and the options."""
         if cases.size == 0:
             return
+        y, derivative, indicator_table, arclength, step_size = (
+            rows.y, rows.derivative, rows.indicators, rows.arclength, rows.step_size
+        )
+        force_controlled, control_rows, lam_end, target_sign = (
+            stage.force_controlled, stage.control, stage.lam_end, stage.target_sign
+        )
+        orientation, reference, secondary_state, cycles_done = (
+            stage.orientation, stage.reference, stage.secondary_state, stage.cycles_done
+        )
+        law, parameters, geometry = model
+        recorded, record_count, stage_number = records
         M, n_motion, state, ev, aux, orient = scratch(y, geometry, cases)
         f1 = np.empty(M)
         for i in cases:
@@ -61,7 +71,7 @@ def start_part(
                 for j in range(M):
                     state[j] = y[i, j] + probe * derivative[i, j]
                 rhs(state, fc, ctl, orient, law, parameters[i], geo, f1, ev, aux)
-                step_size[i] = initial_step_size(y[i], derivative[i], f1, probe, rtol, atol)
+                step_size[i] = initial_step_size(y[i], derivative[i], f1, probe, settings.rtol, settings.atol)
 
     @numba.njit(cache=False, error_model="numpy")
     def settle(cases, y, force_controlled, control_rows, secondary_state, law, parameters, geometry, projected,

@@ -31,29 +31,29 @@ def limits_part(
     over_alignment, over_margin, edge_halvings = OVER_ALIGNMENT, OVER_MARGIN, EDGE_HALVINGS
 
     @njit
-    def admissible_at(sigma, h, y0, coefficients, fc, ctl, orient, law, p, geo, newton_tol,
-                      newton_max_iter, state, dy, ev, aux):
-        # domain_edge._admissible_at, one case: the state at sigma along its step (projected for a
-        # total form) into state, with dy/ds, ev and aux there; whether it is admissible
+    def admissible_at(sigma, interpolant, case, settings, state, dy, ev, aux):
+        # domain_edge._admissible_at, one case: the state at sigma along its step (its
+        # interpolant; projected for a total form) into state, with dy/ds, ev and aux there;
+        # whether it is admissible
+        y0, coefficients, h = interpolant
+        fc, ctl, orient, law, p, geo = case
         dense_value(y0, coefficients, sigma / h, state)
         admissible = True
         if not rate_form:
-            admissible = project(state, fc, ctl, law, p, geo, newton_tol, newton_max_iter, ev)
+            admissible = project(state, fc, ctl, law, p, geo, settings.newton_tol, settings.newton_max_iter, ev)
         rhs(state, fc, ctl, orient, law, p, geo, dy, ev, aux)
         return admissible and domain_detail(state, ev, geo) < 0
 
     @njit
-    def last_admissible(offset, end_at, h, y0, coefficients, fc, ctl, orient, law, p, geo, newton_tol,
-                        newton_max_iter, event_tol, work, ev, aux):
+    def last_admissible(offset, end_at, interpolant, case, settings, work, ev, aux):
         # domain_edge._last_admissible, one case: the last admissible state's place in the
-        # piece (offset, end_at) of the step, by bisection to event_tol
+        # piece (offset, end_at) of the step (its interpolant), by bisection to event_tol
         lo, hi = offset, end_at
         for _ in range(edge_halvings):
-            if not (hi - lo > event_tol):
+            if not (hi - lo > settings.event_tol):
                 break
             mid = 0.5 * (lo + hi)
-            if admissible_at(mid, h, y0, coefficients, fc, ctl, orient, law, p, geo, newton_tol,
-                             newton_max_iter, work[0], work[1], ev, aux):
+            if admissible_at(mid, interpolant, case, settings, work[0], work[1], ev, aux):
                 lo = mid
             else:
                 hi = mid
@@ -76,16 +76,18 @@ def limits_part(
         return 2.0 * ahead if tried else 0.0
 
     @njit
-    def over_step(length, y0, rate, fc, ctl, orient, law, p, geo, newton_tol, newton_max_iter,
-                  y_raw, y_new, dy_new, ev_new, aux_new, y_half, ev, coefficients, degenerate, can_retry):
+    def over_step(length, y0, rate, case, settings, y_raw, end, y_half, ev, coefficients, degenerate, can_retry):
         # the over step (over_steps), one case: the predictor's end y0 + length dy/ds projected
-        # (y_new, with dy_new, ev_new, aux_new there) and the arclength of the step (arc_through)
+        # (end: y_new, with dy_new, ev_new, aux_new there) and the arclength of the step (arc_through)
         # where it is kept: it crossed a simple bifurcation point (the cofactor vector reversed,
         # the tangent within OVER_ALIGNMENT of the one it left), or, tried as ``degenerate``, a
         # degenerate point (aligned, not reversed).  Else 0.0 (nothing is kept), or -1.0 where
         # a degenerate over step is to follow (``can_retry``: aligned, not reversed, not
         # degenerate).  The step's interpolant in coefficients (over_steps:
         # y0 + sigma(f) dy/ds)
+        fc, ctl, orient, law, p, geo = case
+        y_new, dy_new, ev_new, aux_new = end
+        newton_tol, newton_max_iter = settings.newton_tol, settings.newton_max_iter
         m = state_size(y0)
         for j in range(m):
             y_raw[j] = y0[j] + length * rate[j]

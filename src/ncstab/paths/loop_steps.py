@@ -76,9 +76,9 @@ def steps_part(
         return max(a, b)
 
     @njit
-    def dense_coefficients(y0, y_raw, h, fc, ctl, orient, law, p, geo, stages,
-                           coefficients, work, ev, aux):
+    def dense_coefficients(y0, y_raw, h, case, stages, coefficients, work, ev, aux):
         # DOP853's dense output (scipy's: the three extra stages, unprojected)
+        fc, ctl, orient, law, p, geo = case
         m = y0.size
         state, sums = work[0], work[1]
         for s in range(_STAGES + 1, _EXTENDED):
@@ -108,11 +108,13 @@ def steps_part(
             out[j] = value + y0[j]
 
     @njit
-    def indicator_at(y, column, fc, ctl, lam_end, target_sign, turn_end, orient, secondary, law, p, geo,
-                     newton_tol, newton_max_iter, ev, aux, values):
+    def indicator_at(y, column, case, goal, settings, ev, aux, values):
         # an indicator inside a piece: project (total form), evaluate, one column.
         # Without a projection, a column that is a function of y alone (the target, the
         # diamond's gaps) takes the same operations without the law (bit for bit).
+        fc, ctl, orient, law, p, geo = case
+        lam_end, target_sign, turn_end, secondary = goal
+        newton_tol, newton_max_iter = settings.newton_tol, settings.newton_max_iter
         if rate_form:
             known, value = state_indicator(y, column, lam_end, target_sign, secondary, geo)
             if known:
@@ -137,11 +139,12 @@ def steps_part(
         return x  # 0 or NaN
 
     @njit
-    def locate(column, h, offset, span, phi0, phi1, y0, coefficients, fc, ctl, lam_end, target_sign,
-               turn_end, orient, secondary, law, p, geo, newton_tol, newton_max_iter, event_tol,
-               ev, aux, values, state):
+    def locate(column, offset, span, phi0, phi1, interpolant, case, goal, settings, evaluation, values, state):
         # a sign change located by the Illinois iteration (events), one pair: returns (sigma, lower, upper) in the piece
-        # (offset, offset + span) of the step of length h; state at sigma
+        # (offset, offset + span) of the step (its interpolant); state at sigma
+        y0, coefficients, h = interpolant
+        ev, aux = evaluation
+        event_tol = settings.event_tol
         lower, upper = 0.0, span
         f_lower, f_upper = phi0, phi1
         side = 0
@@ -157,8 +160,7 @@ def steps_part(
             if bisect:
                 candidate = 0.5 * (lower + upper)
             dense_value(y0, coefficients, (offset + candidate) / h, state)
-            value = indicator_at(state, column, fc, ctl, lam_end, target_sign, turn_end, orient,
-                                 secondary, law, p, geo, newton_tol, newton_max_iter, ev, aux, values)
+            value = indicator_at(state, column, case, goal, settings, ev, aux, values)
             sigma = candidate
             a_side = sign(value) == sign(f_lower)
             b_side = sign(value) == sign(f_upper)
@@ -223,9 +225,9 @@ def steps_part(
         return min(100 * probe, np.sqrt(np.sqrt(np.sqrt(0.01 / largest))))
 
     @njit
-    def dop853(y0, f0, h, rtol, atol, fc, ctl, orient, law, p, geo, stages, y1, work, ev,
-               aux):
+    def dop853(y0, f0, h, case, settings, stages, y1, work, ev, aux):
         # one DOP853 step (scipy's tableau); leaves ev, aux at the end state y1 (its last stage)
+        fc, ctl, orient, law, p, geo = case
         m = state_size(y0)
         state, sums = work[0], work[1]
         for j in range(m):
@@ -239,4 +241,4 @@ def steps_part(
         for j in range(m):
             y1[j] = y0[j] + h * sums[j]
         rhs_hot(y1, fc, ctl, orient, law, p, geo, stages[_STAGES], ev, aux)
-        return error_norm(y0, y1, h, rtol, atol, stages, work)
+        return error_norm(y0, y1, h, settings.rtol, settings.atol, stages, work)
