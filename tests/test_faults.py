@@ -1242,6 +1242,11 @@ from ncstab.cli import main
 sys.exit(main(sys.argv[1:]))
 """
 
+#: SLOW_RUN at 1 s a chunk: a window of seconds between the first chunk and the end of
+#: the run, for a signal sent when the first chunk appears (at 0.3 s a chunk, a loaded
+#: machine once let the whole run end before the signal arrived: exit 0).
+SLOWER_RUN = SLOW_RUN.replace("time.sleep(0.3)", "time.sleep(1.0)")
+
 
 def test_a_killed_run_is_resumed_identical_taking_over_its_lock(tmp_path, reference, capfd):
     """kill -9 after two chunks: the lock, the archive in progress and the finished parts stay;
@@ -1515,7 +1520,7 @@ def test_sighup_to_a_running_command_keeps_its_chunks_and_removes_its_lock(tmp_p
     """The terminal of a run closes: SIGHUP stops it as Ctrl-C does (it exited 129 leaving out.nc.lock)."""
     study = write_study(tmp_path, FOUR)
     out = tmp_path / "out.nc"
-    child = _python(SLOW_RUN, "run", study, "-o", out, "--chunk-cases", "1")
+    child = _python(SLOWER_RUN, "run", study, "-o", out, "--chunk-cases", "1")
     parts = tmp_path / "out.nc.parts"
     _wait_for(lambda: len(list(parts.glob("*.npz"))) >= 1 or child.poll() is not None, what="a chunk")
     os.kill(child.pid, signal.SIGHUP)

@@ -1,7 +1,7 @@
 """The first step of a path (``PathOptions.initial_step = "auto"``, the default).
 
-- The compiled loop's starting-step estimate (``initial_step_size``, one case, in
-  the generated loop module: :mod:`ncstab.paths.loop_steps`) is Hairer's
+- The compiled loop's starting-step estimate (``initial_step_size``, one case, a
+  plain compiled function the loops import: :mod:`ncstab.paths.loop_numerics`) is Hairer's
   starting-step algorithm: it equals scipy's own implementation
   (``select_initial_step``, used by ``solve_ivp``) wherever scipy's probe step is
   the one given, in the reduced diamond's loop and in the general models' loop.
@@ -13,14 +13,14 @@
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 import pytest
 from scipy.integrate._ivp.common import select_initial_step
 
 import ncstab
 from ncstab.paths import PathOptions, SystemSpec
-from ncstab.paths.compiled_source import general_loop_source, load_module, loop_source
+from ncstab.paths.compiled_source import load_module, loop_source
+from ncstab.paths.loop_numerics import initial_step_size
 from ncstab.studies import StudyFileError
 from ncstab.studies.study import parse_study
 
@@ -36,23 +36,14 @@ SWEEP = {"gamma": list(np.linspace(0.1, 2.0, 6)), "alpha0": list(np.linspace(0.3
 
 @pytest.fixture(scope="module", params=["diamond", "general"])
 def estimate(request):
-    """(the loop's ``initial_step_size`` of one case, the state size it reads or None).
+    """(``initial_step_size`` of one case as a loop calls it, the state size it passes or None).
 
-    The loops' functions are compiled without a Python wrapper (they are called from
-    the loop only): a jitted function calls it here.  The reduced diamond's loop
-    reads its own state size (``M``, 4: v0, v1, lambda, W) whatever the arrays'
-    length; the general models' loop reads the arrays' length."""
-    if request.param == "diamond":
-        module = load_module(loop_source(False), "ncstab_stage_loop")
-        size = module.M
-    else:
-        module = load_module(general_loop_source(False), "ncstab_general_loop")
-        size = None
-    kernel = module.initial_step_size
+    The reduced diamond's loop passes its own state size (``M``, 4: v0, v1, lambda, W)
+    whatever the arrays' length; the general models' loop passes the arrays' length."""
+    size = load_module(loop_source(False), "ncstab_stage_loop").M if request.param == "diamond" else None
 
-    @numba.njit
     def one_case(y0, f0, f1, probe, rtol, atol):
-        return kernel(y0, f0, f1, probe, rtol, atol)
+        return initial_step_size(y0, f0, f1, probe, rtol, atol, size or y0.size)
 
     return one_case, size
 

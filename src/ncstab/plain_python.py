@@ -12,7 +12,9 @@ decides which one runs).  Nothing is re-implemented: the text is executed with
   as the loop passes arrays to a kernel's C callback) back as a numpy view;
 * ``math`` standing for the math module whose functions give numpy's value where
   CPython's raise (``sqrt(-1)`` is NaN, ``log(0)`` is -inf), as numba's compiled code
-  does (``error_model="numpy"``).
+  does (``error_model="numpy"``);
+* the engine's modules of compiled functions that a generated module imports
+  (:data:`PLAIN_IMPORTS`) standing for their own text run the same way.
 
 The two give the same numbers (the arithmetic is the same IEEE operations in
 the same order, and the elementary functions are the C library's in both:
@@ -27,6 +29,7 @@ from __future__ import annotations
 import builtins
 import ctypes
 import functools
+import importlib.util
 import math
 import types
 from collections.abc import Callable
@@ -35,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["PLAIN_ERRORS", "plain_file", "plain_module"]
+__all__ = ["PLAIN_ERRORS", "PLAIN_IMPORTS", "plain_file", "plain_module"]
 
 #: What the plain text may raise where compiled code returns inf or NaN: the caller
 #: runs the work again compiled (``ZeroDivisionError`` of two Python floats, above all).
@@ -96,9 +99,16 @@ _MATH.__dict__.update(
 _STAND_INS = {"numba": _NUMBA, "math": _MATH}
 
 
+#: The engine's modules of compiled functions that the generated modules import
+#: (``from ... import ...``): run as plain Python too, from their own files.
+PLAIN_IMPORTS = ("ncstab.paths.loop_numerics", "ncstab.paths.loop_signs")
+
+
 def _import(name: str, globals: Any = None, locals: Any = None, fromlist: Any = (), level: int = 0) -> Any:
     if level == 0 and name in _STAND_INS:
         return _STAND_INS[name]
+    if level == 0 and name in PLAIN_IMPORTS and fromlist:
+        return plain_file(name, importlib.util.find_spec(name).origin)
     return builtins.__import__(name, globals, locals, fromlist, level)
 
 

@@ -41,8 +41,7 @@ compiled as a C callback (:data:`LAW_SIGNATURE`, under a second), so a new law
 does not compile the loop again.  The cases of a stage run side by side on
 threads (the loop releases the GIL; :mod:`ncstab.paths.compiled_stages`).
 
-The loop's text is a template in parts: :mod:`ncstab.paths.loop_signs` (the
-indicators' signs), a model part (the diamond's :mod:`ncstab.paths.loop_model`
+The loop's text is a template in parts: a model part (the diamond's :mod:`ncstab.paths.loop_model`
 and :mod:`ncstab.paths.loop_diamond`, or a general model's
 :mod:`ncstab.paths.loop_general` and :mod:`ncstab.paths.loop_general_output`:
 the model at a state, the tangent, the projection, the indicators, what is
@@ -52,7 +51,10 @@ domain's edge, and the over step across a simple bifurcation point),
 :mod:`ncstab.paths.loop_start` (a stage's start) and :mod:`ncstab.paths.loop_cases`
 (each case through its stage);
 :mod:`ncstab.paths.compiled_source` pastes them into one module, writes it to
-the cache and imports it.
+the cache and imports it.  What does not depend on the model is plain compiled
+functions the loop imports: DOP853's numerics (:mod:`ncstab.paths.loop_numerics`),
+the indicators' signs (:mod:`ncstab.paths.loop_signs`) and the records a case's
+arrays travel in (:mod:`ncstab.paths.loop_records`).
 """
 from __future__ import annotations
 

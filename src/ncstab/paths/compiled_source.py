@@ -42,6 +42,12 @@ LOOP_RETURN = "return StageLoop(run_cases, start, settle)"
 LOOP_BINDING = "LOOP = StageLoop(run_cases, start, settle)"
 
 
+#: The engine's modules a generated loop imports functions or records from: their text is
+#: part of the loop's cache name (numba does not see a change in a module a cached
+#: function calls into).
+IMPORTED_MODULES = ("compiled.py", "loop_records.py", "loop_numerics.py", "loop_signs.py")
+
+
 def template_body(part: Callable[..., Any]) -> str:
     """The statements of a template function (its source after the docstring), dedented."""
     source = inspect.getsource(part)
@@ -72,14 +78,13 @@ def loop_source(rate_form: bool) -> str:
         loop_cases,
         loop_diamond,
         loop_model,
-        loop_signs,
         loop_start,
         loop_step_limits,
         loop_steps,
     )
 
     parts = (
-        loop_signs.signs_part, loop_model.model_part, loop_diamond.access_part, loop_steps.steps_part, loop_step_limits.limits_part,
+        loop_model.model_part, loop_diamond.access_part, loop_steps.steps_part, loop_step_limits.limits_part,
         loop_start.start_part, loop_cases.cases_part,
     )
     body = "\n".join(template_body(part) for part in parts)
@@ -98,7 +103,12 @@ from ncstab.paths.compiled import (
 )
 from ncstab.paths.contacts import ENTRY_NOISE, ENTRY_PROBE
 from ncstab.paths.domain_edge import EDGE_HALVINGS
+from ncstab.paths.loop_numerics import (
+    A, A_COUNT, A_TERMS, B, B_COUNT, B_TERMS, D, D_COUNT, D_TERMS, combine, dense_value, error_norm, first_column,
+    initial_step_size, piece_count, sign,
+)
 from ncstab.paths.loop_records import Case, Evaluation, Goal, Interpolant, StateAt
+from ncstab.paths.loop_signs import signed_gap, significant, target_indicator
 from ncstab.paths.events import (
     BIFURCATION_COLUMN, CYCLE_COLUMN, INDICATOR_EVENTS, INDICATOR_GAP, SIGN_NOISE, TARGET_COLUMN, TINY, TURNING_COLUMN,
 )
@@ -128,14 +138,13 @@ def general_loop_source(rate_form: bool) -> str:
         loop_cases,
         loop_general,
         loop_general_output,
-        loop_signs,
         loop_start,
         loop_step_limits,
         loop_steps,
     )
 
     parts = (
-        loop_signs.signs_part, loop_general.general_part, loop_general_output.general_output_part, loop_steps.steps_part,
+        loop_general.general_part, loop_general_output.general_output_part, loop_steps.steps_part,
         loop_step_limits.limits_part, loop_start.start_part, loop_cases.cases_part,
     )
     body = "\n".join(template_body(part) for part in parts)
@@ -159,7 +168,12 @@ from ncstab.paths.contacts import ENTRY_NOISE, ENTRY_PROBE
 from ncstab.paths.domain_edge import EDGE_HALVINGS
 from ncstab.paths.events import SIGN_NOISE, TINY
 from ncstab.paths.loop_general import GEO
+from ncstab.paths.loop_numerics import (
+    A, A_COUNT, A_TERMS, B, B_COUNT, B_TERMS, D, D_COUNT, D_TERMS, combine, dense_value, error_norm, first_column,
+    initial_step_size, piece_count, sign,
+)
 from ncstab.paths.loop_records import Case, Evaluation, Goal, Interpolant, StateAt
+from ncstab.paths.loop_signs import signed_gap, significant, target_indicator
 from ncstab.paths.over_steps import OVER_ALIGNMENT, OVER_MARGIN
 
 rate_form = {rate_form!r}
@@ -272,6 +286,6 @@ def load_module(source: str, prefix: str, plain: bool = False) -> Any:
 
     stamp = repr((GEO, INDICATOR_EVENTS, INDICATOR_GAP, SIGN_NOISE, TINY, ENTRY_PROBE, ENTRY_NOISE, EDGE_HALVINGS,
                   OVER_ALIGNMENT, OVER_MARGIN, numba.__version__, np.__version__))
-    own = "".join((Path(__file__).parent / name).read_text(encoding="utf-8") for name in ("compiled.py", "loop_records.py"))
+    own = "".join((Path(__file__).parent / name).read_text(encoding="utf-8") for name in IMPORTED_MODULES)
     digest = hashlib.sha256((source + stamp + own).encode()).hexdigest()[:20]
     return load_named_module(f"{prefix}_{digest}", lambda: source, plain)

@@ -15,17 +15,18 @@ import numpy as np
 
 from ncstab.paths.compiled import _EXTENDED, _POWER, _STAGES, Outcome, StageLoop
 from ncstab.paths.contacts import ENTRY_NOISE, ENTRY_PROBE
+from ncstab.paths.loop_numerics import dense_value, first_column, piece_count, sign
 from ncstab.paths.loop_records import Case, Evaluation, Goal, Interpolant, StateAt
 
 __all__ = ["cases_part"]
 
 
 def cases_part(
-    rate_form, admissible_at, aux_size, bifurcation_col, branch_size, column_count, control_col, cuts_always, cycle_col,
-    dense_coefficients, dense_value, domain_detail, dop853, drop_limit_at_bifurcation, ev_size, first_column,
-    indicators, initial_step_size, last_admissible, locate, motion, motion_product, motion_size,
-    next_degenerate_length, next_over_length, next_state, over_step, piece_count, project, rhs, set_reference, set_state,
-    settle, sign, start, state_size, store_event, store_record, switch_bit, target_col, tries_degenerate, turn_record,
+    rate_form, admissible_at, aux_size, bifurcation_col, branch_size, column_count, control_col, cuts_always,
+    cycle_col, dense_coefficients, domain_detail, dop853, drop_limit_at_bifurcation, ev_size, indicators,
+    last_admissible, locate, motion, motion_product, motion_size, next_degenerate_length, next_over_length,
+    next_state, over_step, project, rhs, set_reference, set_state, settle, start, state_size, store_event,
+    store_record, switch_bit, target_col, tries_degenerate, turn_record,
 ) -> StageLoop:
     """Define ``run_cases`` and ``start`` and return them (a template: see the module docstring)."""
     entry_probe, entry_noise = ENTRY_PROBE, ENTRY_NOISE

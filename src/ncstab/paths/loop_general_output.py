@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ncstab.paths.loop_signs import signed_gap, significant, target_indicator
+
 __all__ = ["general_output_part"]
 
 
@@ -22,7 +24,7 @@ def general_output_part(
     G_BIFURCATION, G_BLOCKING, G_COLUMNS, G_COORD, G_CYCLE, G_DAMPING, G_DIVERGENCE, G_DOMAIN, G_FORCES, G_GAPCOL, G_GAPS, G_INTERACTIONS, G_MASS,
     G_N, G_NGAPS, G_NINT, G_NOPEN, G_NORMALCOL, G_OVERLAPS, G_SIZE, G_STIFFNESS, G_T, G_TARGET, G_TCOUNT,
     G_TSTRIDE, G_TURNING, control_system, damped_onset, displacement, eigenvalue_discriminant, evaluate,
-    frequency_discriminant, njit, richardson_arc, signed_gap, significant, target_indicator,
+    frequency_discriminant, njit, richardson_arc,
 ) -> None:
     """Define the general model's indicators, domain check and storage (a template: see the module docstring)."""
 

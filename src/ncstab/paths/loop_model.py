@@ -22,19 +22,18 @@ import numba
 import numpy as np
 
 from ncstab.paths.compiled import ACTIVATE_SLOT, ALPHA_SLOT, KAPPA_SLOT, STATE_SLOT
+from ncstab.paths.loop_signs import signed_gap, significant, target_indicator
 
 __all__ = ["model_part"]
 
 
-def model_part(rate_form: bool, signed_gap: Any, significant: Any, target_indicator: Any) -> None:
+def model_part(rate_form: bool) -> None:
     """Define the model's helpers (a template: see the module docstring).
 
     Parameters
     ----------
     rate_form
         Whether the laws of this loop have a rate form (T an internal variable).
-    signed_gap, significant, target_indicator
-        The indicators' sign helpers (:mod:`ncstab.paths.loop_signs`, pasted before).
     """
     # The helpers are called from compiled code only: no CPython or C wrapper is
     # built for them.  Those of every DOP853 stage (evaluate, tangent, the stage

@@ -16,11 +16,13 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from ncstab.paths.loop_numerics import initial_step_size
+
 __all__ = ["start_part"]
 
 
 def start_part(
-    aux_size, ev_size, indicators, initial_step_size, motion_size, project, rhs, set_state, state_size, store_record,
+    aux_size, ev_size, indicators, motion_size, project, rhs, set_state, state_size, store_record,
 ) -> None:
     """Define ``start`` (a template: see the module docstring)."""
 
@@ -71,7 +73,7 @@ def start_part(
                 for j in range(M):
                     state[j] = y[i, j] + probe * derivative[i, j]
                 rhs(state, fc, ctl, orient, law, parameters[i], geo, f1, ev, aux)
-                step_size[i] = initial_step_size(y[i], derivative[i], f1, probe, settings.rtol, settings.atol)
+                step_size[i] = initial_step_size(y[i], derivative[i], f1, probe, settings.rtol, settings.atol, state_size(y[i]))
 
     @numba.njit(cache=False, error_model="numpy")
     def settle(cases, y, force_controlled, control_rows, secondary_state, law, parameters, geometry, projected,

@@ -19,13 +19,14 @@ from __future__ import annotations
 import numpy as np
 
 from ncstab.paths.domain_edge import EDGE_HALVINGS
+from ncstab.paths.loop_numerics import dense_value
 from ncstab.paths.over_steps import OVER_ALIGNMENT, OVER_MARGIN
 
 __all__ = ["limits_part"]
 
 
 def limits_part(
-    alignment, arc_through, dense_value, domain_detail, njit, project, rate_form, rhs, state_size, was_flipped,
+    alignment, arc_through, domain_detail, njit, project, rate_form, rhs, state_size, was_flipped,
 ) -> None:
     """Define the helpers of the domain's edge and of over steps (a template: see the module docstring)."""
     over_alignment, over_margin, edge_halvings = OVER_ALIGNMENT, OVER_MARGIN, EDGE_HALVINGS
