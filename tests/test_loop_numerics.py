@@ -88,3 +88,40 @@ def test_pieces_signs_and_the_first_column(numerics):
     assert numerics.first_column(np.array([0, 3, -1]), sigma) == 3
     assert numerics.first_column(np.array([2, 0]), sigma) == 2
     assert numerics.first_column(np.array([-1, -1]), sigma) == -1
+
+
+@pytest.mark.parametrize("theta", [0.1, 0.2, 0.4])
+def test_the_richardson_arc_of_a_circle_errs_by_theta5_over_7680(numerics, theta):
+    # chords of a unit circle's arc of angle theta: 2 sin(theta/2) whole, 4 sin(theta/4) its
+    # halves; (4 halves - whole)/3 = theta - theta^5/7680 + O(theta^7) (Taylor series), so
+    # the error over theta^5 is 1/7680 to O(theta^2) (at most 1.2 % here)
+    arc = numerics.richardson_arc(2 * np.sin(theta / 2), 4 * np.sin(theta / 4))
+    assert (theta - arc) / theta**5 == pytest.approx(1 / 7680, rel=0.012)
+
+
+def test_the_over_step_is_twice_the_distance_to_a_linear_zero(numerics):
+    # a branch test falling linearly, size(s) = 1 - 5 s (zero at s = 0.2); a step from s0 to s1
+    newton_tol = 1e-12
+    margin = loop_numerics.OVER_MARGIN * np.sqrt(newton_tol)
+
+    def over(s0, s1):
+        return numerics.next_over_length(1 - 5 * s0, 1 - 5 * s1, s1 - s0, newton_tol)
+
+    assert over(0.1, 0.19) == 0.0  # 0.01 ahead: beyond the margin, none
+    near = 0.2 - 0.5 * margin  # half the margin ahead: tried, twice that long
+    assert over(0.1, near) == pytest.approx(margin, rel=1e-6)
+    assert over(near, 0.1) == 0.0  # rising: none
+    # the degenerate step: sqrt(size) falls linearly, size = (1 - 5 s)^2: twice 0.01 ahead
+    length = numerics.next_degenerate_length((1 - 5 * 0.1) ** 2, (1 - 5 * 0.19) ** 2, 0.09)
+    assert length == pytest.approx(2 * 0.01, rel=1e-12)
+
+
+def test_the_over_step_interpolant_ends_at_the_predictor(numerics):
+    rate, length, arc = np.array([0.6, -0.8]), 0.3, 0.31
+    coefficients = np.full((7, 2), np.nan)
+    numerics.over_coefficients(length, arc, rate, 2, coefficients)
+    y0, out = np.array([1.0, 2.0]), np.empty(2)
+    numerics.dense_value(y0, coefficients, 1.0, out)
+    np.testing.assert_allclose(out, y0 + length * rate, rtol=1e-15)
+    numerics.dense_value(y0, coefficients, 0.5, out)  # sigma(1/2) = L/2 + (arc - L)/4
+    np.testing.assert_allclose(out, y0 + (length / 2 + (arc - length) / 4) * rate, rtol=1e-15)

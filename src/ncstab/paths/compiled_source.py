@@ -105,7 +105,7 @@ from ncstab.paths.contacts import ENTRY_NOISE, ENTRY_PROBE
 from ncstab.paths.domain_edge import EDGE_HALVINGS
 from ncstab.paths.loop_numerics import (
     A, A_COUNT, A_TERMS, B, B_COUNT, B_TERMS, D, D_COUNT, D_TERMS, combine, dense_value, error_norm, first_column,
-    initial_step_size, piece_count, sign,
+    initial_step_size, next_degenerate_length, next_over_length, over_coefficients, piece_count, richardson_arc, sign,
 )
 from ncstab.paths.loop_records import Case, Evaluation, Goal, Interpolant, StateAt
 from ncstab.paths.loop_signs import signed_gap, significant, target_indicator
@@ -170,7 +170,7 @@ from ncstab.paths.events import SIGN_NOISE, TINY
 from ncstab.paths.loop_general import GEO
 from ncstab.paths.loop_numerics import (
     A, A_COUNT, A_TERMS, B, B_COUNT, B_TERMS, D, D_COUNT, D_TERMS, combine, dense_value, error_norm, first_column,
-    initial_step_size, piece_count, sign,
+    initial_step_size, next_degenerate_length, next_over_length, over_coefficients, piece_count, richardson_arc, sign,
 )
 from ncstab.paths.loop_records import Case, Evaluation, Goal, Interpolant, StateAt
 from ncstab.paths.loop_signs import signed_gap, significant, target_indicator

@@ -15,7 +15,9 @@ import numpy as np
 
 from ncstab.paths.compiled import _EXTENDED, _POWER, _STAGES, Outcome, StageLoop
 from ncstab.paths.contacts import ENTRY_NOISE, ENTRY_PROBE
-from ncstab.paths.loop_numerics import dense_value, first_column, piece_count, sign
+from ncstab.paths.loop_numerics import (
+    dense_value, first_column, next_degenerate_length, next_over_length, piece_count, sign,
+)
 from ncstab.paths.loop_records import Case, Evaluation, Goal, Interpolant, StateAt
 
 __all__ = ["cases_part"]
@@ -24,7 +26,7 @@ __all__ = ["cases_part"]
 def cases_part(
     rate_form, admissible_at, aux_size, bifurcation_col, branch_size, column_count, control_col, cuts_always,
     cycle_col, dense_coefficients, domain_detail, dop853, drop_limit_at_bifurcation, ev_size, indicators,
-    last_admissible, locate, motion, motion_product, motion_size, next_degenerate_length, next_over_length,
+    last_admissible, locate, motion, motion_product, motion_size,
     next_state, over_step, project, rhs, set_reference, set_state, settle, start, state_size, store_event,
     store_record, switch_bit, target_col, tries_degenerate, turn_record,
 ) -> StageLoop:

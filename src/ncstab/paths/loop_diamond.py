@@ -22,13 +22,14 @@ from ncstab.paths.events import (
     TARGET_COLUMN,
     TURNING_COLUMN,
 )
+from ncstab.paths.loop_numerics import richardson_arc
 from ncstab.paths.loop_signs import signed_gap, target_indicator
 
 __all__ = ["access_part"]
 
 
 def access_part(
-    M, N_INT, angle, control, evaluate, gap, hot, njit, richardson_arc, state_slot, tangent,
+    M, N_INT, angle, control, evaluate, gap, hot, njit, state_slot, tangent,
 ) -> None:
     """Define the model's answers to the shared parts (a template: see the module docstring)."""
     n_columns, target_column, turning_column, cycle_column = _N_COLUMNS, TARGET_COLUMN, TURNING_COLUMN, CYCLE_COLUMN

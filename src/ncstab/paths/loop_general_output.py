@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ncstab.paths.loop_numerics import richardson_arc
 from ncstab.paths.loop_signs import signed_gap, significant, target_indicator
 
 __all__ = ["general_output_part"]
@@ -24,7 +25,7 @@ def general_output_part(
     G_BIFURCATION, G_BLOCKING, G_COLUMNS, G_COORD, G_CYCLE, G_DAMPING, G_DIVERGENCE, G_DOMAIN, G_FORCES, G_GAPCOL, G_GAPS, G_INTERACTIONS, G_MASS,
     G_N, G_NGAPS, G_NINT, G_NOPEN, G_NORMALCOL, G_OVERLAPS, G_SIZE, G_STIFFNESS, G_T, G_TARGET, G_TCOUNT,
     G_TSTRIDE, G_TURNING, control_system, damped_onset, displacement, eigenvalue_discriminant, evaluate,
-    frequency_discriminant, njit, richardson_arc,
+    frequency_discriminant, njit,
 ) -> None:
     """Define the general model's indicators, domain check and storage (a template: see the module docstring)."""
 

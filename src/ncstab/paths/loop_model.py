@@ -16,7 +16,6 @@ follows operation for operation).
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numba
 import numpy as np

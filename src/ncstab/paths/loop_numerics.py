@@ -3,7 +3,9 @@
 DOP853 as scipy has it (``scipy.integrate.RK45``'s sibling ``DOP853``: its
 tableau, the stage sums, the error norm, the dense output's Horner form and
 Hairer's starting step), the sign of a value, how many pieces a step is cut
-into, and which of an event's indicator columns was crossed first.  The stage
+into, which of an event's indicator columns was crossed first, and the
+arithmetic of over steps across simple bifurcation points
+(:mod:`ncstab.paths.over_steps`: their lengths, interpolant and arclength).  The stage
 loops (:mod:`ncstab.paths.compiled_source`) import them; where a function needs
 the state's size ``m`` it takes it, so that the diamond's loop passes its
 constant and its loops unroll.
@@ -15,10 +17,12 @@ import numba
 import numpy as np
 
 from ncstab.paths.compiled import _A, _B, _D, _E3, _E5, _EXTENDED, _POWER, _STAGES, _terms
+from ncstab.paths.over_steps import OVER_MARGIN
 
 __all__ = [
     "A", "A_COUNT", "A_TERMS", "B", "B_COUNT", "B_TERMS", "D", "D_COUNT", "D_TERMS", "combine", "dense_value",
-    "error_norm", "first_column", "initial_step_size", "piece_count", "sign",
+    "error_norm", "first_column", "initial_step_size", "next_degenerate_length", "next_over_length", "over_coefficients",
+    "piece_count", "richardson_arc", "sign",
 ]
 
 njit = numba.njit(cache=True, error_model="numpy")
@@ -144,3 +148,48 @@ def initial_step_size(y0, f0, f1, probe, rtol, atol, m):
     if largest <= 1e-15:
         return min(100 * probe, max(1e-6, 1e-3 * probe))
     return min(100 * probe, np.sqrt(np.sqrt(np.sqrt(0.01 / largest))))
+
+
+# --- over steps across simple bifurcation points (ncstab.paths.over_steps)
+
+
+@njit
+def next_over_length(size_before, size_after, reach, newton_tol):
+    """The length of the over step tried next (0: none): twice the distance ``d`` ahead at
+    which the branch test's size, ``size_before`` then ``size_after`` over a step of length
+    ``reach``, extrapolates to zero, where ``0 < d <= OVER_MARGIN sqrt(newton_tol)``."""
+    ahead = reach * size_after / (size_before - size_after)
+    tried = size_before > size_after > 0 and reach > 0
+    return 2.0 * ahead if tried and ahead <= OVER_MARGIN * np.sqrt(newton_tol) else 0.0
+
+
+@njit
+def next_degenerate_length(size_before, size_after, reach):
+    """The degenerate over step's length (0: none): twice the distance at which the square
+    root of the branch test's size extrapolates to zero."""
+    before, after = np.sqrt(size_before), np.sqrt(size_after)
+    ahead = reach * after / (before - after)
+    tried = before > after > 0 and reach > 0 and ahead <= np.inf
+    return 2.0 * ahead if tried else 0.0
+
+
+@njit
+def over_coefficients(length, arc, rate, m, coefficients):
+    """The over step's interpolant in the form of DOP853's dense output (:func:`dense_value`):
+    y0 + sigma(f) dy/ds with sigma(f) = L f + (arc - L) f (1 - f), which ends at the
+    predictor's end (sigma(1) = L) and makes the arclength of the projected states
+    proportional to f to second order."""
+    for k in range(coefficients.shape[0]):
+        for j in range(m):
+            coefficients[k, j] = 0.0
+    for j in range(m):
+        coefficients[0, j] = length * rate[j]
+        coefficients[1, j] = (arc - length) * rate[j]
+
+
+@njit
+def richardson_arc(whole, halves):
+    """The length of an arc from its chord (``whole``) and the chords of its halves
+    (``halves``), extrapolated (Richardson): exact to O(kappa^4 L^5) for a smooth arc of
+    length L."""
+    return (4.0 * halves - whole) / 3.0

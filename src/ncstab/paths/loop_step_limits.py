@@ -5,10 +5,10 @@ Pasted after :func:`ncstab.paths.loop_steps.steps_part` (see
 
 * the domain's edge (:mod:`ncstab.paths.domain_edge`): whether a state is
   admissible, and the last admissible state of a piece, by bisection;
-* simple bifurcation points (:mod:`ncstab.paths.over_steps`): the length of
-  the over step a committed step asks for next, and the over step itself (the
-  predictor along dy/ds projected onto equilibrium, kept where it crossed such
-  a point, with its arclength and its interpolant).
+* simple bifurcation points (:mod:`ncstab.paths.over_steps`): the over step
+  itself (the predictor along dy/ds projected onto equilibrium, kept where it
+  crossed such a point, with its arclength and its interpolant; the arithmetic
+  of its length and interpolant is in :mod:`ncstab.paths.loop_numerics`).
 
 The parameters of :func:`limits_part` are the names it uses from parts 1 and 2
 (it is never called).
@@ -16,11 +16,10 @@ The parameters of :func:`limits_part` are the names it uses from parts 1 and 2
 
 from __future__ import annotations
 
-import numpy as np
 
 from ncstab.paths.domain_edge import EDGE_HALVINGS
-from ncstab.paths.loop_numerics import dense_value
-from ncstab.paths.over_steps import OVER_ALIGNMENT, OVER_MARGIN
+from ncstab.paths.loop_numerics import dense_value, over_coefficients
+from ncstab.paths.over_steps import OVER_ALIGNMENT
 
 __all__ = ["limits_part"]
 
@@ -29,7 +28,7 @@ def limits_part(
     alignment, arc_through, domain_detail, njit, project, rate_form, rhs, state_size, was_flipped,
 ) -> None:
     """Define the helpers of the domain's edge and of over steps (a template: see the module docstring)."""
-    over_alignment, over_margin, edge_halvings = OVER_ALIGNMENT, OVER_MARGIN, EDGE_HALVINGS
+    over_alignment, edge_halvings = OVER_ALIGNMENT, EDGE_HALVINGS
 
     @njit
     def admissible_at(sigma, interpolant, case, settings, state, dy, ev, aux):
@@ -59,22 +58,6 @@ def limits_part(
             else:
                 hi = mid
         return lo
-
-    @njit
-    def next_over_length(size_before, size_after, reach, newton_tol):
-        # the length of the over step tried next (0: none)
-        ahead = reach * size_after / (size_before - size_after)
-        tried = size_before > size_after > 0 and reach > 0
-        return 2.0 * ahead if tried and ahead <= over_margin * np.sqrt(newton_tol) else 0.0
-
-    @njit
-    def next_degenerate_length(size_before, size_after, reach):
-        # the degenerate over step's length (0: none),
-        # twice the distance at which sqrt of the branch test's size extrapolates to zero
-        before, after = np.sqrt(size_before), np.sqrt(size_after)
-        ahead = reach * after / (before - after)
-        tried = before > after > 0 and reach > 0 and ahead <= np.inf
-        return 2.0 * ahead if tried else 0.0
 
     @njit
     def over_step(length, y0, rate, case, settings, y_raw, end, y_half, ev, coefficients, degenerate, can_retry):
@@ -113,22 +96,3 @@ def limits_part(
             return 0.0
         over_coefficients(length, arc, rate, m, coefficients)
         return arc
-
-    @njit
-    def over_coefficients(length, arc, rate, m, coefficients):
-        # the over step's interpolant in the form of DOP853's dense output (dense_value):
-        # y0 + sigma(f) dy/ds with sigma(f) = L f + (arc - L) f (1 - f), which ends at the
-        # predictor's end (sigma(1) = L) and makes the arclength of the projected states
-        # proportional to f to second order
-        for k in range(coefficients.shape[0]):
-            for j in range(m):
-                coefficients[k, j] = 0.0
-        for j in range(m):
-            coefficients[0, j] = length * rate[j]
-            coefficients[1, j] = (arc - length) * rate[j]
-
-    @njit
-    def richardson_arc(whole, halves):
-        # the length of an arc from its chord (whole) and the chords of its halves (halves),
-        # extrapolated (Richardson): exact to O(kappa^4 L^5) for a smooth arc of length L
-        return (4.0 * halves - whole) / 3.0
