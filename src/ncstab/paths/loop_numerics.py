@@ -25,8 +25,10 @@ __all__ = [
     "piece_count", "richardson_arc", "sign",
 ]
 
-njit = numba.njit(cache=True, error_model="numpy")
-hot = numba.njit(cache=True, error_model="numpy", inline="always")
+# Not cached beside ncstab's files: a loop that calls them compiles them into its own
+# machine code, which numba caches in ncstab's cache folder with the loop.
+njit = numba.njit(cache=False, error_model="numpy")
+hot = numba.njit(cache=False, error_model="numpy", inline="always")
 
 #: DOP853's tableau (scipy's ``dop853_coefficients``): the stage weights A, the
 #: solution's B, the two error estimators E3 and E5 and the dense output's D, each

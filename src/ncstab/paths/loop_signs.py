@@ -14,7 +14,9 @@ from ncstab.paths.events import SIGN_NOISE, TINY
 
 __all__ = ["significant", "signed_gap", "target_indicator"]
 
-njit_signs = numba.njit(cache=True, error_model="numpy")
+# Not cached beside ncstab's files: a loop compiles them into its own machine code (cached
+# in ncstab's cache folder).
+njit_signs = numba.njit(cache=False, error_model="numpy")
 
 
 @njit_signs
