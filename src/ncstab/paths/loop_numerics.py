@@ -20,9 +20,26 @@ from ncstab.paths.compiled import _A, _B, _D, _E3, _E5, _EXTENDED, _POWER, _STAG
 from ncstab.paths.over_steps import OVER_MARGIN
 
 __all__ = [
-    "A", "A_COUNT", "A_TERMS", "B", "B_COUNT", "B_TERMS", "D", "D_COUNT", "D_TERMS", "combine", "dense_value",
-    "error_norm", "first_column", "initial_step_size", "next_degenerate_length", "next_over_length", "over_coefficients",
-    "piece_count", "richardson_arc", "sign",
+    "A_COUNT",
+    "A_TERMS",
+    "B_COUNT",
+    "B_TERMS",
+    "D_COUNT",
+    "D_TERMS",
+    "A",
+    "B",
+    "D",
+    "combine",
+    "dense_value",
+    "error_norm",
+    "first_column",
+    "initial_step_size",
+    "next_degenerate_length",
+    "next_over_length",
+    "over_coefficients",
+    "piece_count",
+    "richardson_arc",
+    "sign",
 ]
 
 # Not cached beside ncstab's files: a loop that calls them compiles them into its own
