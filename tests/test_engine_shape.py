@@ -22,7 +22,7 @@ MAX_PARAMETERS = 12
 #: their bodies): their parameters are names, not arguments.
 TEMPLATE_PARTS = {
     ("loop_cases.py", "cases_part"), ("loop_general_output.py", "general_output_part"),
-    ("loop_steps.py", "steps_part"), ("loop_diamond.py", "access_part"),
+    ("loop_steps.py", "steps_part"),
 }
 
 
@@ -51,7 +51,7 @@ def test_no_function_of_the_engine_takes_more_than_12_parameters():
     assert over == {}
 
 
-def test_the_exceptions_are_still_template_parts():
-    # an exception that is gone from the code must go from the list too
-    found = {(path.name, name) for path in PATHS.glob("*.py") for name, _ in _functions(path)}
-    assert TEMPLATE_PARTS <= found
+def test_the_exceptions_are_still_over_the_limit():
+    # an exception that is gone from the code, or back within the limit, must leave the list
+    counts = {(path.name, name): count for path in PATHS.glob("*.py") for name, count in _functions(path)}
+    assert {part: counts.get(part, 0) > MAX_PARAMETERS for part in TEMPLATE_PARTS} == dict.fromkeys(TEMPLATE_PARTS, True)
