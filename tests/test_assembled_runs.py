@@ -14,7 +14,7 @@ import xarray as xr
 
 from ncstab.cli import main
 from ncstab.paths.api import follow
-from ncstab.paths.options import SystemSpec
+from ncstab.paths.options import PathOptions, SystemSpec
 from ncstab.studies import load_study, open_study
 from ncstab.studies.run import run_study
 from ncstab.systems.assembled import AssembledSystem
@@ -155,3 +155,59 @@ def test_ring_of_400_grains_pushed_in_top_and_bottom(tmp_path):
     mirror = (n - np.arange(n)) % n  # grain k <-> grain n + 2 - k (0-based: i <-> n - i)
     np.testing.assert_allclose(u, u[mirror], atol=1e-9, rtol=0)
     assert F[0] == pytest.approx(F[200], abs=1e-9) and F[0] > 0
+
+
+def test_a_residual_within_roundings_of_its_forces_is_at_the_floor():
+    # the floor: machine epsilon times |K| |u| + |dR/dP| |P|, times ROUNDING_FLOOR (max norms)
+    from types import SimpleNamespace
+
+    import scipy.sparse as sparse
+
+    from ncstab.paths.assembled_path import ROUNDING_FLOOR, at_rounding_floor
+
+    K = np.array([[6.0, -4.0], [-4.0, 6.0]])
+    u, load, dR_dload = np.array([2.5e-5, -1e-5]), 9.868e-8, np.array([2.5e-12, 0.0])
+    floor = ROUNDING_FLOOR * np.finfo(float).eps * (6.0 * 2.5e-5 + 2.5e-12 * 9.868e-8)
+    for stiffness in (K, sparse.csr_matrix(K)):
+        state = SimpleNamespace(K=stiffness, dR_dload=dR_dload)
+        assert at_rounding_floor(np.array([2.4e-20, 0.0]), state, u, load)  # the 10,001-link column's
+        assert at_rounding_floor(np.array([0.0, -0.99 * floor]), state, u, load)
+        assert not at_rounding_floor(np.array([0.0, -1.01 * floor]), state, u, load)
+
+
+@pytest.mark.parametrize("at_floor", [True, False])
+def test_a_corrector_failing_at_the_rounding_floor_says_so(monkeypatch, at_floor):
+    # one Newton iteration: the buckled branch's corrector never converges, the steps halve
+    # to min_step and the case fails; its message names the floor only where it was reached
+    from ncstab.paths import assembled_path
+    from ncstab.systems.assembled_builders import assembled_column
+
+    monkeypatch.setattr(assembled_path, "at_rounding_floor", lambda *args: at_floor)
+    links = 12
+    critical = 4 * np.sin(np.pi / (2 * links)) ** 2
+    result = follow(assembled_column(links), None, [{"drive": {"P": 1.2 * critical}, "at_bifurcation": "switch"}],
+                    options=PathOptions(newton_max_iter=1, min_step=1e-3))
+    outcome = result.results[0].outcomes[0]
+    assert outcome.status == "failed:newton" and "bifurcation" in outcome.events
+    assert outcome.message.endswith("below float64's resolution there)") == at_floor
+    assert "the corrector does not converge" in outcome.message
+
+
+def test_a_tangent_turning_at_every_step_says_so(monkeypatch):
+    # a tangent that always turns by more than MAX_TURN: every step is taken again shorter
+    from ncstab.paths import assembled_path
+    from ncstab.systems.assembled_builders import assembled_column
+
+    tangent = assembled_path.Stepper.tangent
+    calls = {"n": 0}
+
+    def turning(self, point, previous):
+        calls["n"] += 1
+        z = tangent(self, point, previous)
+        return z if calls["n"] <= 3 else -z  # (the start's and the first steps' tangents kept)
+
+    monkeypatch.setattr(assembled_path.Stepper, "tangent", turning)
+    result = follow(assembled_column(12), None, [{"drive": {"P": 0.05}}], options=PathOptions(min_step=1e-3))
+    outcome = result.results[0].outcomes[0]
+    assert outcome.status == "failed:newton"
+    assert "the tangent turns by more than 0.2 rad over every step down to min_step" in outcome.message

@@ -25,7 +25,40 @@ from ncstab.paths.assembled_events import (
 from ncstab.paths.programme import LoadingProgramme
 from ncstab.paths.trivial_path import is_trivial, trivial_path_signs
 
-__all__ = ["CaseOutcome", "follow_case"]
+__all__ = ["ROUNDING_FLOOR", "CaseOutcome", "at_rounding_floor", "follow_case"]
+
+#: A corrector's residual within this many roundings of the forces it balances is at
+#: float64's floor (:func:`at_rounding_floor`).
+ROUNDING_FLOOR = 8.0
+
+
+def at_rounding_floor(G: np.ndarray, state, u: np.ndarray, load: float) -> bool:
+    """Whether the residual ``G`` is within :data:`ROUNDING_FLOOR` roundings of the forces it
+    balances at ``u`` under ``load``: machine epsilon times |K| |u| + |dR/dP| |P| (max
+    norms).  There Newton's steps are driven by rounding and cannot converge: the path is
+    below float64's resolution (a column of 10,001 links past P1: |G| 2.4e-20 against a
+    floor of 3.3e-20, docs/models.md)."""
+    scale = abs(state.K).max() * np.max(np.abs(u), initial=0.0)
+    scale += np.max(np.abs(state.dR_dload), initial=0.0) * abs(load)
+    return bool(np.max(np.abs(G), initial=0.0) <= ROUNDING_FLOOR * np.finfo(float).eps * scale)
+
+
+#: The largest turn of the path's tangent over one step (radians): a step whose end's
+#: tangent turns more is taken again shorter.
+MAX_TURN = 0.2
+
+
+def _failure_text(where: str, turned: bool, at_floor: bool) -> str:
+    """Why the steps shrank below ``min_step``: the last one's tangent turned too far, or
+    its corrector did not converge; and whether a corrector stopped at the rounding floor
+    since the last accepted step (:func:`at_rounding_floor`)."""
+    text = f"{where}: " + (f"the tangent turns by more than {MAX_TURN} rad over every step down to min_step"
+                           if turned else "the corrector does not converge")
+    if at_floor:
+        text += "; the corrector's residual reached the rounding floor of the forces it balances " \
+                "(the path is below float64's resolution there)"
+    return text
+
 
 def _last_unit(size: int) -> np.ndarray:
     """The unit vector along y's last coordinate, lambda / scale."""
@@ -54,6 +87,9 @@ class Stepper:
     def __init__(self, run: CaseRun, control: StageControl) -> None:
         self.run, self.control = run, control
         self.m = len(control.force_dofs)
+        #: Whether a corrector that did not converge since the last accepted step ended at the
+        #: rounding floor (:func:`at_rounding_floor`).
+        self.at_floor = False
 
     def lam(self, y: np.ndarray) -> float:
         return float(y[self.m] * self.control.scale)
@@ -105,6 +141,7 @@ class Stepper:
                     return self.point(y, start, along)
                 except DomainError:
                     return None
+        self.at_floor = self.at_floor or at_rounding_floor(G, p.state, p.u, p.load)
         return None
 
     def tangent(self, p: Point, previous: np.ndarray) -> np.ndarray:
@@ -256,10 +293,11 @@ def follow_case(run: CaseRun, programme: LoadingProgramme, values: dict[str, flo
             h = min(h, MAX_LAMBDA_STEP / max(abs(t[m]), 1e-300),
                     MAX_RELATIVE_MOVE * max(1.0, np.max(np.abs(p.u))) / max(np.max(np.abs(t[:m]), initial=0.0), 1e-300))
             q = stepper.correct(p.y + h * t, t, p)
+            turned = False  # (the corrector converged, but the tangent there turned too far)
             if q is not None:
                 q.tangent = stepper.tangent(q, t)
-                if q.tangent @ t < np.cos(0.2):
-                    q = None
+                if q.tangent @ t < np.cos(MAX_TURN):
+                    q, turned = None, True
             if q is None:
                 out.rejected += 1
                 h *= 0.5
@@ -267,7 +305,7 @@ def follow_case(run: CaseRun, programme: LoadingProgramme, values: dict[str, flo
                     where = f"stage {number + 1} at lambda = {stepper.lam(p.y):.6g}"
                     try:
                         stepper.point(p.y + 2 * options.min_step * t, p)
-                        reason, text = "newton", f"{where}: the corrector does not converge"
+                        reason, text = "newton", _failure_text(where, turned, stepper.at_floor)
                     except ArithmeticError as error:
                         reason, text = "domain", f"{where}: the path leaves the domain ({error})"
                     out.status, out.message = f"failed:{reason}", text
@@ -317,6 +355,7 @@ def follow_case(run: CaseRun, programme: LoadingProgramme, values: dict[str, flo
                     disrupted = (at, "switch", e, where)
                 elif name == "secondary_contact" and run.mode == "activate":
                     disrupted = (at, "activate", e, where)
+            stepper.at_floor = False  # (a step is accepted)
             if disrupted is None:
                 out.accepted += 1
                 trail.append(step)
