@@ -1242,9 +1242,9 @@ from ncstab.cli import main
 sys.exit(main(sys.argv[1:]))
 """
 
-#: SLOW_RUN at 1 s a chunk: a window of seconds between the first chunk and the end of
-#: the run, for a signal sent when the first chunk appears (at 0.3 s a chunk, a loaded
-#: machine once let the whole run end before the signal arrived: exit 0).
+#: SLOW_RUN at 1 s a chunk: a window of seconds between the chunks a test waits for and
+#: the end of the run, for a signal sent then (at 0.3 s a chunk, a loaded machine once let
+#: the whole run end before the signal arrived: exit 0).
 SLOWER_RUN = SLOW_RUN.replace("time.sleep(0.3)", "time.sleep(1.0)")
 
 
@@ -1253,7 +1253,7 @@ def test_a_killed_run_is_resumed_identical_taking_over_its_lock(tmp_path, refere
     --resume takes the stale lock over, removes the temporaries, computes the rest."""
     study = write_study(tmp_path, FOUR)
     out = tmp_path / "out.nc"
-    child = _python(SLOW_RUN, "run", study, "-o", out, "--chunk-cases", "1")
+    child = _python(SLOWER_RUN, "run", study, "-o", out, "--chunk-cases", "1")
     parts = tmp_path / "out.nc.parts"
     _wait_for(lambda: len(list(parts.glob("*.npz"))) >= 2 or child.poll() is not None, what="two chunks")
     os.kill(child.pid, signal.SIGKILL)
