@@ -227,13 +227,19 @@ def test_a_function_outside_the_math_module_is_refused_naming_the_system_and_the
 
 def test_a_kernel_numba_cannot_compile_is_refused_naming_the_system(tmp_path, monkeypatch):
     """A generated module whose kernel calls an unknown function (a stand-in for any
-    numba compilation error): a ValueError naming the system, not numba's traceback."""
+    numba compilation error): a ValueError naming the system, not numba's traceback.
+    The machine-code route is forced: a small study whose kernel is not cached runs it
+    as plain Python (ncstab.paths.loop_route), where the unknown name is a NameError, not
+    numba's error (run alone, the test failed so; in the full suite it passed)."""
     import sympy as sp
 
     from ncstab import follow
     from ncstab.operators import model_kernel
+    from ncstab.paths import loop_route
 
     monkeypatch.setenv("NCSTAB_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(loop_route, "evaluates_plain", lambda *args: False)
+    monkeypatch.setattr(loop_route, "runs_plain", lambda *args: False)
     real = model_kernel.kernel_source
     monkeypatch.setattr(model_kernel, "kernel_source",
                         lambda *args: real(*args).replace("        add_member(out", "        no_such_helper(out"))

@@ -52,10 +52,11 @@ def add_rate_row(out, row_at, local, count, k, width, kinematics, rates, force):
         out[row_at + local[a]] += total
 
 
-def add_gap_springs(out, forces_at, stiffness_at, n, gaps_at, count, width, local, counts, state, kappa, weights,
-                    geometry):
+def add_gap_springs(out, forces_at, stiffness_at, n, gaps_at, local, counts, state, kappa, weights, geometry):
     # geometry = (g (count), grad g (count x width), hess g (count x width x width)) on each
-    # gap's own dofs local[g, :counts[g]]; the springs of closed gaps, scattered into the n dofs
+    # gap's own dofs local[g, :counts[g]] (local: count x width); the springs of closed gaps,
+    # scattered into the n dofs
+    count, width = local.shape
     for g in range(count):
         value = geometry[g]
         out[gaps_at + g] = value

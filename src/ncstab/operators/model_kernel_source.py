@@ -214,7 +214,6 @@ def kernel_source(definition: SystemDefinition, laws: tuple[Any, ...], activate:
             globals_.append(f"GAP_WEIGHTS = np.array({[float(g.weight) for g in definition.gaps]!r})")
             globals_.append(f"GAP_LOCAL = np.array({[row + [0] * (width - len(row)) for row in locals_]!r}, dtype=np.int64)")
             globals_.append(f"GAP_COUNT = np.array({[len(row) for row in locals_]!r}, dtype=np.int64)")
-            globals_.append(f"GAP_WIDTH = {width}")
         body = _statements([f"out[{e}]" for e in range(len(values))], values, geometry_names, "    ")
         functions.append(_function("gap_geometry" if activate else "gap_values", "u, p, out", prelude, body))
         work = max(work, len(values))
@@ -295,8 +294,8 @@ def _module_text(definition, layout: KernelLayout, globals_, functions, calls, r
     elif activate:  # secondary contacts activated: closed gaps carry springs
         gaps = [
             "    gap_geometry(u, p, kin)",
-            (f"    add_gap_springs(out, {layout.forces}, {layout.stiffness}, {n}, {layout.gaps}, {layout.n_gaps}, "
-             f"GAP_WIDTH, GAP_LOCAL, GAP_COUNT, state, p[{rows}], GAP_WEIGHTS, kin)"),
+            (f"    add_gap_springs(out, {layout.forces}, {layout.stiffness}, {n}, {layout.gaps}, "
+             f"GAP_LOCAL, GAP_COUNT, state, p[{rows}], GAP_WEIGHTS, kin)"),
         ]
     else:
         gaps = ["    gap_values(u, p, kin)", f"    for g in range({layout.n_gaps}):", f"        out[{layout.gaps} + g] = kin[g]"]

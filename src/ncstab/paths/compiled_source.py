@@ -30,6 +30,7 @@ from ncstab.paths.contacts import ENTRY_NOISE, ENTRY_PROBE
 from ncstab.paths.domain_edge import EDGE_HALVINGS
 from ncstab.paths.events import INDICATOR_EVENTS, INDICATOR_GAP, SIGN_NOISE, TINY
 from ncstab.paths.over_steps import OVER_ALIGNMENT, OVER_MARGIN
+from ncstab.plain_python import PLAIN_IMPORTS
 
 __all__ = [
     "CACHE_KIND", "general_loop_source", "kernel_body", "kernel_source", "load_module", "loop_source", "template_body",
@@ -42,10 +43,11 @@ LOOP_RETURN = "return StageLoop(run_cases, start, settle)"
 LOOP_BINDING = "LOOP = StageLoop(run_cases, start, settle)"
 
 
-#: The engine's modules a generated loop imports functions or records from: their text is
-#: part of the loop's cache name (numba does not see a change in a module a cached
-#: function calls into).
-IMPORTED_MODULES = ("compiled.py", "loop_records.py", "loop_numerics.py", "loop_signs.py")
+#: The engine's modules a generated loop imports functions or records from (those of
+#: compiled functions are the plain route's :data:`ncstab.plain_python.PLAIN_IMPORTS`):
+#: their text is part of the loop's cache name (numba does not see a change in a module a
+#: cached function calls into).
+IMPORTED_MODULES = ("compiled.py", "loop_records.py", *(f"{name.rsplit('.', 1)[1]}.py" for name in PLAIN_IMPORTS))
 
 
 def template_body(part: Callable[..., Any]) -> str:
