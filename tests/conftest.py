@@ -93,12 +93,12 @@ def pytest_unconfigure(config: pytest.Config) -> None:
 # --- compiling the compiled stepper's loops once per session -----------------------------------
 
 #: The catalogue laws the tests follow on the reduced diamond (the compiled
-#: stepper is the default there): one of each form compiles its loop, and each
+#: stepper is the default there): the first compiles the diamond's loop, and each
 #: its kernel (their ``no_tension`` variants compile their own kernels, in a
 #: second, where a test first follows them).
 WARM_LAWS = ("cundall_strack", "weakly_hypoelastic", "mcnamara", "turco")
-#: The general models' loops (one per form, :mod:`ncstab.paths.loop_general`), warmed by a
-#: column of four links (three dofs, a total form) and a ring of four grains (a rate law).
+#: The general models' loop (:mod:`ncstab.paths.loop_general`), warmed by a column of four
+#: links, and the kernel of a ring of four grains under a rate law (:mod:`ncstab.engine_warmup`).
 WARM_GENERAL = ("general-total", "general-rate")
 
 

@@ -237,21 +237,21 @@ def test_a_read_only_folder_gives_exit_code_3_and_names_what_stayed(root, capsys
     assert len(list(stuck.iterdir())) == 2
 
 
-def test_compile_compiles_every_loop_in_processes_by_form_and_says_so(capsys):
+def test_compile_compiles_every_loop_in_processes_by_model_and_says_so(capsys):
     """On the session's cache (the warm-up compiled the loops, so it takes seconds): four
-    items, a law of each form for the diamond's loops and the general models' two, in two
-    processes, each the items of one form."""
-    from ncstab.engine_warmup import ENGINE_ITEMS, groups_by_form
+    items in two processes, the general models' loop apart from the diamond's laws and a
+    ring's kernel, so that no two processes compile the same loop."""
+    from ncstab.engine_warmup import ENGINE_ITEMS, groups_by_model
 
-    assert groups_by_form(ENGINE_ITEMS, 2) == [("mcnamara", "general-total"), ("cundall_strack", "general-rate")]
-    (single,) = groups_by_form(ENGINE_ITEMS, 1)
+    assert groups_by_model(ENGINE_ITEMS, 2) == [("mcnamara", "cundall_strack", "general-rate"), ("general-total",)]
+    (single,) = groups_by_model(ENGINE_ITEMS, 1)
     assert sorted(single) == sorted(ENGINE_ITEMS)
     code, out, err = _ncstab(capsys, "compile")
     assert (code, err) == (0, "")
     lines = out.splitlines()
-    assert lines[0].startswith("compiling the compiled stepper's 4 loops into ")
+    assert lines[0].startswith("compiling the compiled stepper's 2 loops (the reduced diamond's, the general models') into ")
     assert sorted(line.split(" in ")[0] for line in lines[1:3]) == [
-        "  compiled for cundall_strack, general-rate", "  compiled for mcnamara, general-total"]
+        "  compiled for general-total", "  compiled for mcnamara, cundall_strack, general-rate"]
     assert re.fullmatch(r"done in \d+ s: studies of any size now start at once", lines[3])
 
 

@@ -118,9 +118,7 @@ def test_the_projection_falls_back_to_least_squares_for_a_rank_deficient_constra
     to rounding (entries of size ~1: 1e-12)."""
     import numba
 
-    from ncstab.paths.compiled_source import general_loop_source, load_module
-
-    least_squares_step = load_module(general_loop_source(False), "ncstab_general_loop").least_squares_step
+    from ncstab.paths.loop_general import least_squares_step
 
     @numba.njit
     def step_of(matrix, rate, residual):

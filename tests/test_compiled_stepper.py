@@ -564,23 +564,29 @@ def test_a_study_file_with_a_bad_backend_is_rejected_naming_the_field(value):
     assert "options.backend" in info.value.fields, info.value.errors
 
 
-def test_the_compiled_loop_is_generated_once_and_cached_on_disk():
-    """The loop of a form (rate or total) and each law's kernel are modules in the cache
-    directory, with numba's cache beside them."""
+def test_the_compiled_loop_is_cached_on_disk_once_for_every_law():
+    """The loop's machine code is kept in one folder of the cache, named by a hash of the
+    loop's modules (its three entry points, one index each, which holds the reduced
+    diamond's code for every law); each law's kernel is a module of the cache folder, with
+    numba's cache beside it."""
     from ncstab.cache import cache_directory
+    from ncstab.engine_cache import engine_digest, engine_folder
+    from ncstab.paths.loop_cases import run_cases
+    from ncstab.paths.loop_records import DiamondModel
+    from ncstab.paths.loop_route import machine_code_cached
 
     follow(SystemSpec(secondary_contacts="ignore"), "cundall_strack", [{"hold": {"F2": 0.0}, "drive": {"D1": 0.01}}],
            {"gamma": 1.0}, PathOptions())
     directory = cache_directory("compiled")
-    modules = sorted(directory.glob("ncstab_stage_loop_*.py"))
-    assert modules, directory
-    loaded = [sys.modules[m.stem] for m in modules if m.stem in sys.modules]
-    assert any(module.rate_form for module in loaded)  # Cundall-Strack's form
+    assert engine_folder() == directory / f"engine_{engine_digest()}"
+    entries = {p.name.split(".")[1].split("-")[0] for p in engine_folder().glob("*.nbi")}
+    assert entries == {"run_cases", "start", "settle"}, entries
+    assert machine_code_cached(run_cases, DiamondModel(rate_form=True))  # Cundall-Strack's form
+    assert machine_code_cached(run_cases, DiamondModel(rate_form=False))  # the same code: a field of the record
     kernels = [sys.modules[m.stem] for m in directory.glob("ncstab_law_*.py") if m.stem in sys.modules]
     assert kernels and all(hasattr(module, "LAW") for module in kernels), kernels
-    assert len(modules) <= 2  # one loop per form (rate, total), whatever the laws
     index = {p.name.split(".")[1].split("-")[0] for p in (directory / "__pycache__").glob("*.nbi")}
-    assert {"run_cases", "start", "LAW"} <= index, index
+    assert "LAW" in index, index
 
 
 def test_a_cache_directory_that_cannot_be_written_falls_back_to_a_temporary_one(tmp_path, monkeypatch):

@@ -1,11 +1,12 @@
 """The engine's shape, which the readers of src/ncstab/paths rely on.
 
-Two limits a newcomer can read the engine by: no module of ``ncstab.paths`` over
-400 lines, and no function there with more than 12 parameters (a case's arrays
-travel in the named records of :mod:`ncstab.paths.loop_records`).  The only
-exceptions are the template parts of the compiled loop, whose parameters are the
-names they take from the parts pasted before them (they are never called); they
-go when the loop is no longer pasted together.
+Three limits a newcomer can read the engine by: no module of ``ncstab.paths`` over
+400 lines, no function there with more than 12 parameters (a case's arrays
+travel in the named records of :mod:`ncstab.paths.loop_records`), and no source
+pasted together from template parts: the compiled loop is plain modules whose
+functions call each other (the only generated text is the small entry module of
+:func:`ncstab.paths.compiled_source.loop_source` and the law kernels printed from
+sympy).
 """
 
 from __future__ import annotations
@@ -18,12 +19,6 @@ import ncstab.paths
 PATHS = Path(ncstab.paths.__file__).parent
 MAX_LINES = 400
 MAX_PARAMETERS = 12
-#: The template parts of the compiled loop (:mod:`ncstab.paths.compiled_source` pastes
-#: their bodies): their parameters are names, not arguments.
-TEMPLATE_PARTS = {
-    ("loop_cases.py", "cases_part"), ("loop_general_output.py", "general_output_part"),
-    ("loop_steps.py", "steps_part"),
-}
 
 
 def _functions(path: Path):
@@ -46,12 +41,24 @@ def test_no_function_of_the_engine_takes_more_than_12_parameters():
         (path.name, name): count
         for path in sorted(PATHS.glob("*.py"))
         for name, count in _functions(path)
-        if count > MAX_PARAMETERS and (path.name, name) not in TEMPLATE_PARTS
+        if count > MAX_PARAMETERS
     }
     assert over == {}
 
 
-def test_the_exceptions_are_still_over_the_limit():
-    # an exception that is gone from the code, or back within the limit, must leave the list
-    counts = {(path.name, name): count for path in PATHS.glob("*.py") for name, count in _functions(path)}
-    assert {part: counts.get(part, 0) > MAX_PARAMETERS for part in TEMPLATE_PARTS} == dict.fromkeys(TEMPLATE_PARTS, True)
+def test_nothing_in_the_engine_is_a_template():
+    # grep -ri template src/ncstab/paths: no part pasted into another module's text
+    named = [path.name for path in PATHS.glob("*.py") if "template" in path.read_text(encoding="utf-8").lower()]
+    assert named == []
+
+
+def test_the_loop_s_modules_are_what_the_plain_route_runs_and_the_cache_name_hashes():
+    # every module of the loop's compiled functions runs as plain Python on the plain route
+    # (ncstab.plain_python) and its text is part of the entry module's cache name
+    from ncstab.paths.compiled_source import ENGINE_MODULES
+    from ncstab.plain_python import PLAIN_IMPORTS
+
+    loop_modules = {f"ncstab.paths.{path.stem}" for path in PATHS.glob("loop_*.py")} - {
+        "ncstab.paths.loop_records", "ncstab.paths.loop_route",
+    }
+    assert loop_modules <= set(PLAIN_IMPORTS) <= set(ENGINE_MODULES)

@@ -19,8 +19,9 @@ from scipy.integrate._ivp.common import select_initial_step
 
 import ncstab
 from ncstab.paths import PathOptions, SystemSpec
-from ncstab.paths.compiled_source import load_module, loop_source
+from ncstab.paths.loop_diamond import state_size
 from ncstab.paths.loop_numerics import initial_step_size
+from ncstab.paths.loop_records import DiamondModel
 from ncstab.studies import StudyFileError
 from ncstab.studies.study import parse_study
 
@@ -38,9 +39,10 @@ SWEEP = {"gamma": list(np.linspace(0.1, 2.0, 6)), "alpha0": list(np.linspace(0.3
 def estimate(request):
     """(``initial_step_size`` of one case as a loop calls it, the state size it passes or None).
 
-    The reduced diamond's loop passes its own state size (``M``, 4: v0, v1, lambda, W)
-    whatever the arrays' length; the general models' loop passes the arrays' length."""
-    size = load_module(loop_source(False), "ncstab_stage_loop").M if request.param == "diamond" else None
+    The reduced diamond's loop passes its own state size (``state_size``, 4 for a total
+    form: v0, v1, lambda, W) whatever the arrays' length; the general models' loop passes
+    the arrays' length."""
+    size = state_size.py_func(DiamondModel(rate_form=False), None) if request.param == "diamond" else None
 
     def one_case(y0, f0, f1, probe, rtol, atol):
         return initial_step_size(y0, f0, f1, probe, rtol, atol, size or y0.size)

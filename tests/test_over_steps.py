@@ -14,10 +14,11 @@ import pytest
 
 numba = pytest.importorskip("numba")
 
-from ncstab.paths.compiled_source import load_module, loop_source
+from ncstab.paths import loop_numerics
+from ncstab.paths.compiled import _POWER
 from ncstab.paths.over_steps import OVER_MARGIN
 
-LOOP = load_module(loop_source(False), "ncstab_stage_loop")
+LOOP = loop_numerics  # the compiled loop imports these
 _next_over_length = LOOP.next_over_length
 _next_degenerate_length = LOOP.next_degenerate_length
 _richardson_arc = LOOP.richardson_arc
@@ -116,7 +117,7 @@ def test_the_over_interpolant_is_the_predictor_at_sigma_of_f():
     y0, rate = rng.normal(size=(3, 4)), rng.normal(size=(3, 4))
     length = np.array([1e-4, 2e-4, 5e-5])
     arc = length * (1 + np.array([1e-3, -2e-3, 5e-4]))
-    power = LOOP._POWER  # the rows of DOP853's dense output (scipy's INTERPOLATOR_POWER)
+    power = _POWER  # the rows of DOP853's dense output (scipy's INTERPOLATOR_POWER)
     for f in (0.0, 0.25, 0.5, 0.9, 1.0):
         sigma = length * f + (arc - length) * f * (1 - f)
         for k in range(3):

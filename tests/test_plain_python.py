@@ -151,7 +151,7 @@ def test_a_chunk_of_a_large_study_weighs_the_study_s_work_not_its_own(monkeypatc
     from ncstab.paths.engine_choice import choose_engine
     from ncstab.paths.programme import parse_programme
 
-    monkeypatch.setattr(loop_route, "machine_code_cached", lambda entry: False)  # a new machine
+    monkeypatch.setattr(loop_route, "machine_code_cached", lambda entry, kind=None: False)  # a new machine
     model = resolve_model(SystemSpec(secondary_contacts="ignore"), ["mcnamara"])
     batch = case_batch(model.laws[0], model, {"gamma": np.array([1.0])}, 1)
     programme = parse_programme([{"hold": {"F2": 0.0}, "drive": {"D1": 0.1}}])

@@ -87,13 +87,13 @@ def _compile(processes: int | None) -> int:
     import os
 
     from ncstab.cache import cache_root
-    from ncstab.engine_warmup import ENGINE_ITEMS, compile_loops, groups_by_form
+    from ncstab.engine_warmup import ENGINE_ITEMS, compile_loops, groups_by_model
     from ncstab.studies.errors import RunError
 
     if processes is None:
         processes = min(2, os.cpu_count() or 1)
-    groups = groups_by_form(ENGINE_ITEMS, processes)
-    print(f"compiling the compiled stepper's 4 loops into {cache_root() / 'compiled'} in {len(groups)} "
+    groups = groups_by_model(ENGINE_ITEMS, processes)
+    print(f"compiling the compiled stepper's 2 loops (the reduced diamond's, the general models') into {cache_root() / 'compiled'} in {len(groups)} "
           f"process{'es' if len(groups) > 1 else ''} (30-90 s a loop on 2 cores, once per machine) ...", flush=True)
 
     def done(group: tuple[str, ...], seconds: float) -> None:

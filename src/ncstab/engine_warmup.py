@@ -1,17 +1,21 @@
 """Compile the compiled stepper's loops ahead of time: ``ncstab cache compile`` and the tests' warm-up.
 
-numba compiles each loop of the compiled stepper once per machine and keeps its
-machine code in the cache folder ``compiled`` (:mod:`ncstab.cache`): 30-90 s a
-loop on 2 cores.  A small study does not wait for it (it runs the loop as plain
-Python, :mod:`ncstab.paths.loop_route`); a large one compiles first.
+numba compiles the compiled stepper's loop once per kind of model (the reduced
+diamond, the general models) and machine, and keeps its machine code in the
+cache folder ``compiled`` (:mod:`ncstab.cache`): 30-90 s a loop on 2 cores.  A
+small study does not wait for it (it runs the loop as plain Python,
+:mod:`ncstab.paths.loop_route`); a large one compiles first.
 :func:`compile_loops` pays that cost up front, in several processes at once,
-each compiling the loops of one form of law (total or rate), by following one
-tiny path per item through the public API with ``backend = "compiled"``:
+each compiling the loop of one kind of model, by following one tiny path per
+item through the public API with ``backend = "compiled"``:
 
-* a law's name: the reduced diamond with that law (the diamond's loop of the
-  law's form, and the law's own kernel);
-* ``general-total`` and ``general-rate``: the general models' loop of each form
-  (a column of four links; a ring of four grains with Cundall-Strack).
+* a law's name: the reduced diamond with that law (the diamond's loop, and the
+  law's own kernel);
+* ``general-total``: the general models' loop (a column of four links, with its
+  model kernel);
+* ``general-rate``: the model kernel of a ring of four grains with Cundall-Strack
+  (a rate law), without the loop: it goes with the diamond's items, so that the
+  two processes take about as long.
 
 Run as a module (``python -m ncstab.engine_warmup ITEM ...``) it compiles the items
 named, in this process.
@@ -27,12 +31,12 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 
-__all__ = ["ENGINE_ITEMS", "GENERAL_ITEMS", "compile_items", "compile_loops", "groups_by_form"]
+__all__ = ["ENGINE_ITEMS", "GENERAL_ITEMS", "compile_items", "compile_loops", "groups_by_model"]
 
-#: The general models' loops, one per form of law.
+#: The general models' loop, followed with a law of each form.
 GENERAL_ITEMS = ("general-total", "general-rate")
-#: What ``ncstab cache compile`` compiles: every loop, once (a law of each form for the
-#: diamond's loops).
+#: What ``ncstab cache compile`` compiles: the diamond's loop and the general models' (each
+#: with a law of each form, whose kernels are compiled too).
 ENGINE_ITEMS = ("mcnamara", "cundall_strack", *GENERAL_ITEMS)
 #: Seconds one process may take (a loop compiles in 30-90 s on 2 cores, more under load).
 PROCESS_TIMEOUT = 900
@@ -53,10 +57,14 @@ def compile_items(items: Sequence[str]) -> None:
         if item == "general-total":
             programme = [{"hold": {"F2": 0.0, "F3": 0.0}, "drive": {"F1": 1e-3}}]
             path = follow(SystemSpec("column", links=4), None, programme, {}, options)
-        elif item == "general-rate":
-            programme = [{"hold": {"F2": 0.0, "F4": 0.0}, "drive": {"D1": 0.01, "D3": 0.01}}]
-            path = follow(SystemSpec("ring", grains=4, secondary_contacts="ignore"), "cundall_strack", programme,
-                          {"gamma": 1.0}, options)
+        elif item == "general-rate":  # the model kernel only: general-total compiles the loop
+            import numpy as np
+
+            from ncstab.paths.api import case_batch, resolve_model
+
+            model = resolve_model(SystemSpec("ring", grains=4, secondary_contacts="ignore"), ["cundall_strack"])
+            case_batch(model.laws[0], model, {"gamma": np.array([1.0])}, 1)._kernel.callback  # noqa: B018 - compiles it
+            continue
         else:
             programme = [{"hold": {"F2": 0.0}, "drive": {"D1": 0.01}}]
             path = follow(SystemSpec(secondary_contacts="ignore"), item, programme, {"gamma": 1.0}, options)
@@ -65,18 +73,16 @@ def compile_items(items: Sequence[str]) -> None:
             raise RuntimeError(f"{item} did not run on the compiled stepper: {engine}")
 
 
-def groups_by_form(items: Sequence[str], processes: int) -> list[tuple[str, ...]]:
-    """``items`` in at most ``processes`` groups, the items of one form (rate or total)
-    together: the loop is one per form (the laws add their small kernels), so no two
-    processes compile the same loop."""
-    from ncstab.laws.registry import law_definition
-
-    forms: dict[bool, list[str]] = {}
+def groups_by_model(items: Sequence[str], processes: int) -> list[tuple[str, ...]]:
+    """``items`` in at most ``processes`` groups, the general models' loop
+    (``general-total``) apart from the rest (the reduced diamond's laws, a ring's kernel):
+    the loop is compiled once per kind of model (the laws and models add their small
+    kernels), so no two processes compile the same loop."""
+    kinds: dict[bool, list[str]] = {}
     for item in items:
-        total = item == "general-total" if item in GENERAL_ITEMS else law_definition(item).has_total_form
-        forms.setdefault(total, []).append(item)
-    groups: list[list[str]] = [[] for _ in range(max(1, min(processes, len(forms))))]
-    for k, members in enumerate(forms.values()):
+        kinds.setdefault(item == "general-total", []).append(item)
+    groups: list[list[str]] = [[] for _ in range(max(1, min(processes, len(kinds))))]
+    for k, members in enumerate(kinds.values()):
         groups[k % len(groups)].extend(members)
     return [tuple(group) for group in groups if group]
 
@@ -104,7 +110,7 @@ def compile_loops(
                                   text=True, env=environment, timeout=PROCESS_TIMEOUT, check=False)
         return group, finished, time.perf_counter() - began
 
-    groups = groups_by_form(items, processes)
+    groups = groups_by_model(items, processes)
     with ThreadPoolExecutor(len(groups)) as pool:
         for future in as_completed([pool.submit(compile_group, group) for group in groups]):
             group, finished, seconds = future.result()

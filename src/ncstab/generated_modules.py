@@ -13,6 +13,7 @@ import hashlib
 import importlib.util
 import inspect
 import os
+import re
 import sys
 import tempfile
 import threading
@@ -53,10 +54,15 @@ njit = numba.njit(cache=True, error_model="numpy")
 
 
 def compiled_functions(*functions: Callable[..., Any]) -> str:
-    """The source of plain Python functions, each decorated ``@njit`` (as defined by
-    :data:`COMPILED_HEADER`): the text a generated module compiles, so that numba keeps
-    their machine code in the cache folder, not beside ncstab's own files."""
-    return "\n\n".join("@njit\n" + inspect.getsource(function) for function in functions)
+    """The source of Python functions (or of numba's compiled ones: their Python function),
+    each decorated ``@njit`` (as defined by :data:`COMPILED_HEADER`) in place of its own
+    decorators: the text a generated module compiles, so that numba keeps their machine
+    code in the cache folder, not beside ncstab's own files."""
+    texts = []
+    for function in functions:
+        source = inspect.getsource(getattr(function, "py_func", function))
+        texts.append("@njit\n" + source[re.search(r"^def ", source, re.MULTILINE).start():])
+    return "\n\n".join(texts)
 
 
 def compiled_module(prefix: str, *functions: Callable[..., Any]) -> Any:

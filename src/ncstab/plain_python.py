@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["PLAIN_ERRORS", "PLAIN_IMPORTS", "plain_file", "plain_module"]
+__all__ = ["PLAIN_ERRORS", "PLAIN_IMPORTS", "plain_file", "plain_import", "plain_module"]
 
 #: What the plain text may raise where compiled code returns inf or NaN: the caller
 #: runs the work again compiled (``ZeroDivisionError`` of two Python floats, above all).
@@ -62,6 +62,7 @@ def _carray(pointer: Any, shape: Any, dtype: Any = float) -> np.ndarray:
 
 _NUMBA = types.SimpleNamespace(
     njit=_keep, jit=_keep, cfunc=_keep, carray=_carray, vectorize=lambda *a, **k: np.vectorize, types=None,
+    extending=types.SimpleNamespace(overload=lambda *a, **k: lambda function: function),
 )
 
 
@@ -100,16 +101,35 @@ _STAND_INS = {"numba": _NUMBA, "math": _MATH}
 
 
 #: The engine's modules of compiled functions that the generated modules import
-#: (``from ... import ...``): run as plain Python too, from their own files.
-PLAIN_IMPORTS = ("ncstab.paths.loop_numerics", "ncstab.paths.loop_signs")
+#: (``from ... import ...``, directly or through each other): run as plain Python too,
+#: from their own files.  The stage loop is these modules (:mod:`ncstab.paths.loop_cases`
+#: and what it calls), whose decorators come from :mod:`ncstab.jit`.
+PLAIN_IMPORTS = (
+    "ncstab.jit", "ncstab.paths.loop_numerics", "ncstab.paths.loop_signs", "ncstab.paths.cofactor",
+    "ncstab.operators.onset_cases", "ncstab.paths.loop_diamond_model", "ncstab.paths.loop_diamond",
+    "ncstab.paths.loop_general", "ncstab.paths.loop_general_output", "ncstab.paths.loop_dispatch",
+    "ncstab.paths.loop_steps", "ncstab.paths.loop_step_limits", "ncstab.paths.loop_start", "ncstab.paths.loop_cases",
+)
 
 
 def _import(name: str, globals: Any = None, locals: Any = None, fromlist: Any = (), level: int = 0) -> Any:
     if level == 0 and name in _STAND_INS:
         return _STAND_INS[name]
     if level == 0 and name in PLAIN_IMPORTS and fromlist:
-        return plain_file(name, importlib.util.find_spec(name).origin)
-    return builtins.__import__(name, globals, locals, fromlist, level)
+        return plain_import(name)
+    package = builtins.__import__(name, globals, locals, fromlist, level)
+    if level == 0 and fromlist and any(f"{name}.{item}" in PLAIN_IMPORTS for item in fromlist):
+        # ``from ncstab.paths import loop_diamond``: the plain module for each engine module named
+        return types.SimpleNamespace(**{
+            item: plain_import(f"{name}.{item}") if f"{name}.{item}" in PLAIN_IMPORTS else getattr(package, item)
+            for item in fromlist
+        })
+    return package
+
+
+def plain_import(name: str) -> types.ModuleType:
+    """The engine's module ``name`` (one of :data:`PLAIN_IMPORTS`) run as plain Python."""
+    return plain_file(name, importlib.util.find_spec(name).origin)
 
 
 _BUILTINS = {**vars(builtins), "__import__": _import}

@@ -28,7 +28,7 @@ def characteristic_polynomial(
     term of p on the circle
     (:func:`ncstab.operators.onset_cases.interpolated_coefficients`).  Every
     case is computed alone, by the compiled per-case function the compiled
-    stepper pastes too (:func:`ncstab.operators.onset_cases.characteristic_coefficients`).
+    stepper calls too (:func:`ncstab.operators.onset_cases.characteristic_coefficients`).
 
     Parameters
     ----------

@@ -253,7 +253,7 @@ def flutter_onset_indicator(
     discriminant = frequency_discriminant(mass, stiffness) if undamped.any() else np.full(undamped.shape, np.nan)
     if damping is None:
         return discriminant
-    # each case alone, by the compiled per-case function the compiled stepper pastes too
+    # each case alone, by the compiled per-case function the compiled stepper calls too
     return np.where(undamped, discriminant, damped_onsets(mass, damping, stiffness))
 
 

@@ -127,8 +127,8 @@ def function_from_source(source: str, key: str) -> Callable[..., Any]:
     """The function a lambdified source text defines, with sympy's numpy namespace.
 
     The text is registered with :mod:`linecache` under a name made from ``key``, so that
-    :func:`inspect.getsource` reads it (the compiled stepper pastes the kernel's source
-    into its own module, :func:`ncstab.paths.compiled_source.kernel_source`).
+    :func:`inspect.getsource` reads it (the compiled stepper prints the kernel's source
+    into a module of its own, :func:`ncstab.paths.compiled_source.kernel_source`).
 
     Raises
     ------

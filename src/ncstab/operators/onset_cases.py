@@ -1,9 +1,10 @@
 """The flutter-onset tests and the characteristic polynomial det(M s^2 + C s + K), one case at a time.
 
-One implementation for every caller: each function below is one case, in plain
-Python, compiled by numba in a generated module of the cache folder
-(:func:`ncstab.generated_modules.compiled_module`).  The compiled stage loop of
-general models pastes them as they are (:mod:`ncstab.paths.loop_general_output`);
+One implementation for every caller: each function below is one case, compiled
+by numba (:data:`ncstab.jit.njit`).  The compiled stage loop of general models
+calls them (:mod:`ncstab.paths.loop_general_output`); for the others they are
+compiled in a generated module of the cache folder
+(:func:`ncstab.generated_modules.compiled_module`):
 the batch functions (:func:`eigenvalue_discriminants`, :func:`frequency_discriminants`,
 :func:`characteristic_rows`, :func:`damped_onsets`) run one case after the other
 (so a case's numbers do not depend on its batch) for
@@ -24,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from ncstab.generated_modules import compiled_module
+from ncstab.jit import njit
 
 __all__ = [
     "characteristic_coefficients", "characteristic_rows", "damped_onset", "damped_onsets", "eigenvalue_discriminant",
@@ -32,6 +34,7 @@ __all__ = [
 ]
 
 
+@njit
 def eigenvalue_discriminant(matrix):
     """prod_{i<j} (lambda_i - lambda_j)^2 over the eigenvalues of a real n x n matrix (real,
     negative where it has one complex pair: the discriminant of its characteristic
@@ -53,6 +56,7 @@ def eigenvalue_discriminant(matrix):
     return product.real
 
 
+@njit
 def regular_determinant(mass):
     """det M where M is regular, else NaN (:func:`ncstab.operators.dynamic_matrices.regular_mass`:
     |det M| > n eps prod_j |M_j|, the Euclidean norms of the columns; det M in closed form
@@ -73,6 +77,7 @@ def regular_determinant(mass):
     return determinant if abs(determinant) > n * np.finfo(np.float64).eps * norms else np.nan
 
 
+@njit
 def frequency_discriminant(mass, stiffness):
     """The discriminant of q(mu) = det(M mu + K), mu = s^2
     (:func:`ncstab.operators.frequency_discriminant`, whose vectorized closed forms for
@@ -101,6 +106,7 @@ def frequency_discriminant(mass, stiffness):
     return determinant ** (2 * n - 2) * eigenvalue_discriminant(np.linalg.solve(mass, stiffness))
 
 
+@njit
 def characteristic_coefficients(mass, damping, stiffness, out):
     """The 2n + 1 real coefficients of p(s) = det(M s^2 + C s + K), highest degree first, in ``out``.
 
@@ -135,6 +141,7 @@ def characteristic_coefficients(mass, damping, stiffness, out):
     interpolated_coefficients(mass, damping, stiffness, out)
 
 
+@njit
 def interpolated_coefficients(mass, damping, stiffness, out):
     """The coefficients of :func:`characteristic_coefficients` (2n + 1, highest degree
     first, in ``out``) from the values of p on a circle, for every n (used for n >= 3;
@@ -190,6 +197,7 @@ def interpolated_coefficients(mass, damping, stiffness, out):
         out[points - 1 - j] = total / points / radius**j
 
 
+@njit
 def damped_onset(mass, damping, stiffness, coefficients, hurwitz):
     """The flutter-onset test of a damped M s^2 + C s + K: the Hurwitz determinant
     Delta_{2n-1} of its characteristic polynomial made monic (``coefficients`` (2n + 1)

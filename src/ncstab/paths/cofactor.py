@@ -25,10 +25,11 @@ replaced.
 The same decomposition gives the Newton projection's minimum-norm correction
 (:func:`minimum_norm_step`): [M | -g'] x = -r with A = R^T Q^T is solved by
 x = -Q [R1^-T r; 0], with no normal matrix A A^T (whose condition number is
-the square of A's).  Each function is one case, written in plain Python and
-compiled by numba in a generated module of the cache folder (so that numba's
-machine code is kept there: :func:`ncstab.generated_modules.compiled_module`;
-a compiled loop pastes them as they are); :func:`cofactor_vectors` and
+the square of A's).  Each function is one case, compiled by numba
+(:data:`ncstab.jit.njit`): the compiled stage loop calls them
+(:mod:`ncstab.paths.loop_general`), and for scripts and tests they are compiled
+in a generated module of the cache folder
+(:func:`ncstab.generated_modules.compiled_module`); :func:`cofactor_vectors` and
 :func:`minimum_norm_steps` run a batch, one case after the other (for tests and
 scripts: the engine calls the per-case functions from its loop).
 """
@@ -42,6 +43,7 @@ from typing import Any
 import numpy as np
 
 from ncstab.generated_modules import compiled_module
+from ncstab.jit import njit
 
 __all__ = ["cofactor_vector", "cofactor_vectors", "minimum_norm_step", "minimum_norm_steps", "work_size"]
 
@@ -51,6 +53,7 @@ def work_size(n):
     return 2 * (n + 1) * n + 2 * (n + 1)
 
 
+@njit
 def _factor(matrix, rate, work):
     """Householder QR of A^T = [M | -rate]^T in ``work``: R above the diagonal of the
     first block (its diagonal apart, in ``diagonal``), the reflections' vectors in the
@@ -96,6 +99,7 @@ def _factor(matrix, rate, work):
     return b, v, diagonal, vector, sign
 
 
+@njit
 def _apply_q(v, vector):
     """vector <- Q vector = H_0 H_1 ... H_{n-1} vector (the reflections in reverse order)."""
     rows, n = v.shape
@@ -111,6 +115,7 @@ def _apply_q(v, vector):
                 vector[i] -= factor * v[i, k]
 
 
+@njit
 def cofactor_vector(matrix, rate, out, work):
     """``out[:n] = adj(matrix) rate``, ``out[n] = det(matrix)`` (``work``: :func:`work_size`)."""
     n = rate.shape[0]
@@ -127,6 +132,7 @@ def cofactor_vector(matrix, rate, out, work):
         out[i] = scale * vector[i]
 
 
+@njit
 def minimum_norm_step(matrix, rate, residual, out, work):
     """The minimum-norm solution x = (dv, dlambda) of [M | -rate] x = -residual, into
     ``out``; False (out untouched) where R has a zero on its diagonal (A of lower rank:

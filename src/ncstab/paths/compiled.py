@@ -21,40 +21,38 @@ the case there to switch branch; finds the domain's edge inside a step
 the batch nor on the thread (alpha from the C library's ``atan2``:
 :mod:`ncstab.paths.c_library`).
 
-The reduced diamond runs on its fused kernel (the model part
-:mod:`ncstab.paths.loop_model`, :mod:`ncstab.paths.loop_diamond`); general
-models (:mod:`ncstab.paths.loop_general`, :mod:`ncstab.paths.compiled_general`)
-and the pure-shear limit (``normal = "rigid"``, :mod:`ncstab.paths.compiled_rigid`) run
-on the same template with the general model part.  Stage entry, branch
+One loop steps every system: the reduced diamond (its law's fused kernel,
+:mod:`ncstab.paths.loop_diamond_model` and :mod:`ncstab.paths.loop_diamond`),
+general models (:mod:`ncstab.paths.loop_general`,
+:mod:`ncstab.paths.loop_general_output`, :mod:`ncstab.paths.compiled_general`)
+and the pure-shear limit (``normal = "rigid"``, :mod:`ncstab.paths.compiled_rigid`).
+What depends on the model the loop asks of it through
+:mod:`ncstab.paths.loop_dispatch`, by the model's record
+(:class:`~ncstab.paths.loop_records.DiamondModel`,
+:class:`~ncstab.paths.loop_records.GeneralModel`).  Stage entry, branch
 switching and the assembly of the result are done once per stage or event,
 in numpy, by :class:`ncstab.paths.stepper.BatchStepper`: this module runs each
 case from the start of a stage to its end (target, stop event, branch switch
 or failure).
 
 numba is a dependency of ncstab (imported lazily: without it the engine asks
-for it).  The loop is one per form of law (a total
-form, or a rate form with T an internal variable), generated as a module in
-the cache folder ``compiled`` (:mod:`ncstab.cache`) and compiled once per
-machine (numba caches the machine code beside
-the module).  The law is an argument of the loop: its generated state kernel,
-compiled as a C callback (:data:`LAW_SIGNATURE`, under a second), so a new law
-does not compile the loop again.  The cases of a stage run side by side on
-threads (the loop releases the GIL; :mod:`ncstab.paths.compiled_stages`).
-
-The loop's text is a template in parts: a model part (the diamond's :mod:`ncstab.paths.loop_model`
-and :mod:`ncstab.paths.loop_diamond`, or a general model's
-:mod:`ncstab.paths.loop_general` and :mod:`ncstab.paths.loop_general_output`:
-the model at a state, the tangent, the projection, the indicators, what is
-stored), then the shared parts :mod:`ncstab.paths.loop_steps` (a DOP853 step,
-dense output, event location), :mod:`ncstab.paths.loop_step_limits` (the
-domain's edge, and the over step across a simple bifurcation point),
-:mod:`ncstab.paths.loop_start` (a stage's start) and :mod:`ncstab.paths.loop_cases`
-(each case through its stage);
-:mod:`ncstab.paths.compiled_source` pastes them into one module, writes it to
-the cache and imports it.  What does not depend on the model is plain compiled
-functions the loop imports: DOP853's numerics (:mod:`ncstab.paths.loop_numerics`),
-the indicators' signs (:mod:`ncstab.paths.loop_signs`) and the records a case's
-arrays travel in (:mod:`ncstab.paths.loop_records`).
+for it).  The loop is plain modules of compiled functions calling each other:
+:mod:`ncstab.paths.loop_cases` (each case through its stage),
+:mod:`ncstab.paths.loop_steps` (a DOP853 step, dense output, event location),
+:mod:`ncstab.paths.loop_step_limits` (the domain's edge, and the over step
+across a simple bifurcation point), :mod:`ncstab.paths.loop_start` (a stage's
+start), the model's modules above, DOP853's numerics
+(:mod:`ncstab.paths.loop_numerics`), the indicators' signs
+(:mod:`ncstab.paths.loop_signs`) and the records a case's arrays travel in
+(:mod:`ncstab.paths.loop_records`).  It is compiled once per kind of model and
+machine, from its entry points (:func:`stage_loop`), and numba keeps the machine
+code in the cache folder ``compiled`` (:mod:`ncstab.engine_cache`,
+:mod:`ncstab.cache`).  The form of law (a total form, or a rate form with T
+an internal variable) is a field of the model's record, and the law an argument
+of the loop: its generated state kernel, compiled as a C callback
+(:data:`LAW_SIGNATURE`, under a second), so a new law does not compile the loop
+again.  The cases of a stage run side by side on threads (the loop releases the
+GIL; :mod:`ncstab.paths.compiled_stages`).
 """
 from __future__ import annotations
 
@@ -84,6 +82,7 @@ __all__ = [
     "NUMBA_AVAILABLE",
     "Outcome",
     "StageLoop",
+    "stage_loop",
     "stage_runner",
 ]
 
@@ -97,13 +96,16 @@ EVENT_FIELDS = (
 class StageLoop(NamedTuple):
     """The compiled functions of one law: ``run`` (cases through their stage),
     ``start`` (cases entering a stage), ``settle`` (states projected, and the rate of
-    lambda there) and ``law`` (the law's kernel, passed to all three)."""
+    lambda there), ``law`` (the law's kernel, passed to all three), whether it reads
+    alpha, and ``kind``, the model's record the loop dispatches on
+    (:class:`ncstab.paths.loop_records.DiamondModel` or ``GeneralModel``)."""
 
     run: Callable[..., None]
     start: Callable[..., None]
     settle: Callable[..., None]
     law: Any = None
     uses_alpha: bool = True
+    kind: Any = None
 
 
 #: Slots of a case's row ``p`` before the law's parameters: kappa, whether the
@@ -166,24 +168,39 @@ def _runner(
     kernels: tuple[Callable[..., list], ...], overlap: Callable[..., Any] | None, n_parameters: int, rate_form: bool,
     plain: bool = False,
 ) -> StageLoop:
-    """The loop for one law's fused kernels: the loop of its form (two per machine,
-    compiled once) and the law's own kernel (compiled once per law, a second or two);
-    with ``plain``, both as plain Python (:mod:`ncstab.plain_python`), nothing compiled."""
-    from ncstab.paths.compiled_source import kernel_body, kernel_source, load_module, loop_source
+    """The loop for one law's fused kernels: the diamond's loop (compiled once per
+    machine) and the law's own kernel (compiled once per law, a second or two); with
+    ``plain``, both as plain Python (:mod:`ncstab.plain_python`), nothing compiled."""
+    from ncstab.paths.compiled_source import kernel_body, kernel_source, load_module
+    from ncstab.paths.loop_records import DiamondModel
 
     uses_alpha = any(re.search(r"\balpha_\b", kernel_body(kernel)) for kernel in kernels)
     uses_alpha |= overlap is not None and re.search(r"\balpha\b", kernel_body(overlap)) is not None
-    loop = load_module(loop_source(rate_form), "ncstab_stage_loop", plain).LOOP
     law = load_module(kernel_source(kernels, overlap, n_parameters, 10 if rate_form else 8), "ncstab_law", plain).LAW
-    return StageLoop(loop.run, loop.start, loop.settle, law, uses_alpha)
+    return stage_loop(DiamondModel(rate_form), plain)._replace(law=law, uses_alpha=uses_alpha)
 
 
-def loop_entry(rate_form: bool) -> Any:
-    """The compiled loop's entry point of one form (``run_cases``, not compiled by this call),
-    whose machine code in numba's cache decides the route (:mod:`ncstab.paths.loop_route`)."""
-    from ncstab.paths.compiled_source import load_module, loop_source
+def stage_loop(kind: Any, plain: bool = False) -> StageLoop:
+    """The stage loop's entry points (:func:`ncstab.paths.loop_cases.run_cases`,
+    :func:`ncstab.paths.loop_start.start` and :func:`~ncstab.paths.loop_start.settle`)
+    for the model whose record is ``kind``; with ``plain``, those of the loop's modules run
+    as plain Python (:func:`ncstab.plain_python.plain_import`)."""
+    if plain:
+        from ncstab.plain_python import plain_import
 
-    return load_module(loop_source(rate_form), "ncstab_stage_loop").LOOP.run
+        cases, start = plain_import("ncstab.paths.loop_cases"), plain_import("ncstab.paths.loop_start")
+    else:
+        from ncstab.paths import loop_cases as cases
+        from ncstab.paths import loop_start as start
+    return StageLoop(cases.run_cases, start.start, start.settle, kind=kind)
+
+
+def loop_entry() -> Any:
+    """The compiled loop's entry point (``run_cases``, not compiled by this call), whose
+    machine code in numba's cache decides the route (:mod:`ncstab.paths.loop_route`)."""
+    from ncstab.paths.loop_cases import run_cases
+
+    return run_cases
 
 
 @functools.cache

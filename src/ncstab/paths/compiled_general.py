@@ -2,8 +2,8 @@
 
 :class:`GeneralStages` is :class:`ncstab.paths.compiled_stages.CompiledStages`
 for a :class:`~ncstab.paths.model_batch.ModelBatch`: the same calls, threads
-and outcomes, with the general model's rows.  The loop is one per form of law
-for every general model (:func:`general_runner`); the model is its compiled
+and outcomes, with the general model's rows.  The loop is one for every
+general model and form of law (:func:`general_runner`); the model is its compiled
 kernel's C callback, and its sizes and event columns are each case's ``geo``
 row (:data:`ncstab.paths.loop_general.GEO`).  The loop stores what it knows of a
 state (s, u, lambda, internal variables, W, F, K, du, dlambda) straight into the
@@ -36,10 +36,10 @@ __all__ = ["GeneralStages", "general_runner"]
 def general_runner(rate_form: bool, plain: bool = False) -> StageLoop:
     """The compiled stage loop of the general models of one form (compiled once per machine),
     or with ``plain`` its text as plain Python (:mod:`ncstab.plain_python`)."""
-    from ncstab.paths.compiled_source import general_loop_source, load_module
+    from ncstab.paths.compiled import stage_loop
+    from ncstab.paths.loop_records import GeneralModel
 
-    loop = load_module(general_loop_source(rate_form), "ncstab_general_loop", plain).LOOP
-    return StageLoop(loop.run, loop.start, loop.settle)
+    return stage_loop(GeneralModel(rate_form), plain)
 
 
 class GeneralStages(CompiledStages):
@@ -62,7 +62,7 @@ class GeneralStages(CompiledStages):
         size, n = batch.size, batch.n_dof
         kernel = batch._kernel
         layout, module = kernel.layout, kernel.module
-        self.runner, self.starter, self.settler = loop.run, loop.start, loop.settle
+        self.runner, self.starter, self.settler, self.kind = loop.run, loop.start, loop.settle, loop.kind
         self.law = kernel.plain_case if plain else kernel.callback
         self.batch = batch
         # p: the kernel's parameter row, the work factor, the contact-state bits (loop_general)

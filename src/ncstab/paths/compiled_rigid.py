@@ -218,7 +218,7 @@ class RigidStages(GeneralStages):
         size, n = batch.size, 2
         rate_form = not batch.has_total_form
         row = rigid_row(rate_form)
-        self.runner, self.starter, self.settler = loop.run, loop.start, loop.settle
+        self.runner, self.starter, self.settler, self.kind = loop.run, loop.start, loop.settle, loop.kind
         self.law = rigid_module(batch.law.definition, plain).case
         if not plain:  # the loop's C callback (compiled once per law and machine)
             from ncstab.operators.model_kernel_layout import KERNEL_SIGNATURE

@@ -59,7 +59,7 @@ class _TurnEnd(NamedTuple):
 
 def control_rows(stages: Any) -> np.ndarray:
     """Each case's control path as the loop reads it (``control`` of
-    :mod:`ncstab.paths.loop_model`): is_cycle, the offset and slope of g (two dofs),
+    :mod:`ncstab.paths.loop_diamond_model`): is_cycle, the offset and slope of g (two dofs),
     then a cycle's centre, radius, theta0 and direction (``StageArrays.control_path``)."""
     return np.ascontiguousarray(np.column_stack([
         stages.is_cycle.astype(float), stages.offset, stages.slope, stages.center, stages.radius, stages.theta0,
@@ -88,6 +88,7 @@ class CompiledStages:
         self.starter = loop.start
         self.settler = loop.settle
         self.law = loop.law
+        self.kind = loop.kind
         # Per case (compiled.KAPPA_SLOT, ...): kappa, whether the secondary-contact springs act,
         # the contact-state bits (kept in step with the stepper's around each call), whether
         # the law reads alpha, then the law's parameters.
@@ -147,8 +148,8 @@ class CompiledStages:
         options = stepper.options
         self.settler(
             cases.astype(np.int64), stepper.y, np.ascontiguousarray(stage.force_controlled), self.control_rows(stage),
-            np.ascontiguousarray(stage.secondary_state, dtype=np.int64), self.law, self.parameters, self.geometry,
-            projected, options.newton_tol, options.newton_max_iter, rates,
+            np.ascontiguousarray(stage.secondary_state, dtype=np.int64), self._model_rows(), projected,
+            options.newton_tol, options.newton_max_iter, rates,
         )
         return rates
 
@@ -272,8 +273,8 @@ class CompiledStages:
         )
 
     def _model_rows(self) -> ModelRows:
-        """The law's callback and each case's parameters and geometry."""
-        return ModelRows(self.law, self.parameters, self.geometry)
+        """The model's record, the law's callback and each case's parameters and geometry."""
+        return ModelRows(self.kind, self.law, self.parameters, self.geometry)
 
     @staticmethod
     def _settings(options: Any) -> StepSettings:

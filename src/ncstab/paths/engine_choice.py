@@ -45,15 +45,19 @@ def choose_engine(
     from ncstab.paths.compiled_general import general_runner
     from ncstab.paths.loop_route import runs_plain
     from ncstab.paths.model_batch import ModelBatch
-    from ncstab.paths.rigid_model import RigidCaseBatch
     from ncstab.paths.rhs import StateLayout
+    from ncstab.paths.rigid_model import RigidCaseBatch
 
     rate_form = not batch.has_total_form
     general = isinstance(batch, (ModelBatch, RigidCaseBatch))
     if plain is None:
-        entry = general_runner(rate_form).run if general else compiled.loop_entry(rate_form)
+        from ncstab.paths.loop_records import DiamondModel, GeneralModel
+
+        kind = GeneralModel(rate_form) if general else DiamondModel(rate_form)
         cases = max(batch.size, study_cases or 0)
-        plain = runs_plain(options.backend, cases, StateLayout(batch.n_dof, batch.n_internal).size, entry)
+        plain = runs_plain(
+            options.backend, cases, StateLayout(batch.n_dof, batch.n_internal).size, compiled.loop_entry(), kind
+        )
     engine = f"compiled stepper (numba {compiled.numba.__version__})"
     if isinstance(batch, ModelBatch):
         from ncstab.paths.compiled_general import GeneralStages

@@ -10,7 +10,9 @@ than a dozen parameters and each says what it works on:
   (:class:`StageRows`), its cycle turns (:class:`TurnTables`), its event
   tables (:class:`EventTables`) and what is stored (:class:`Records`), and the
   outcome of each case's call (:class:`Outcomes`); the model's rows
-  (:class:`ModelRows`) and the options (:class:`StepSettings`): the arguments
+  (:class:`ModelRows`, with the model's record :class:`DiamondModel` or
+  :class:`GeneralModel`, by whose type the loop picks the model's functions) and the
+  options (:class:`StepSettings`): the arguments
   of ``run_cases`` and ``start`` (:mod:`ncstab.paths.loop_cases`,
   :mod:`ncstab.paths.loop_start`), built by
   :class:`ncstab.paths.compiled_stages.CompiledStages`;
@@ -33,8 +35,10 @@ import numpy as np
 __all__ = [
     "Case",
     "CaseRows",
+    "DiamondModel",
     "Evaluation",
     "EventTables",
+    "GeneralModel",
     "Goal",
     "Interpolant",
     "ModelRows",
@@ -115,10 +119,26 @@ class Outcomes(NamedTuple):
     detail: np.ndarray
 
 
-class ModelRows(NamedTuple):
-    """The model the loop evaluates: the law's (or model kernel's) C callback and each
-    case's row of parameters and of geometry."""
+class DiamondModel(NamedTuple):
+    """The record of a reduced diamond (:mod:`ncstab.paths.loop_diamond`): the loop's
+    model functions are the diamond's (:mod:`ncstab.paths.loop_dispatch`)."""
 
+    rate_form: bool  #: whether the law has a rate form (T an internal variable, no Newton projection)
+
+
+class GeneralModel(NamedTuple):
+    """The record of a general model (:mod:`ncstab.paths.loop_general`): the loop's
+    model functions are a general model's (:mod:`ncstab.paths.loop_dispatch`)."""
+
+    rate_form: bool  #: whether some law of the model has no total form (no Newton projection)
+
+
+class ModelRows(NamedTuple):
+    """The model the loop evaluates: its record (:class:`DiamondModel` or
+    :class:`GeneralModel`), the law's (or model kernel's) C callback and each case's row
+    of parameters and of geometry."""
+
+    kind: Any
     law: Any
     parameters: np.ndarray
     geometry: np.ndarray
@@ -140,10 +160,11 @@ class StepSettings(NamedTuple):
 
 
 class Case(NamedTuple):
-    """One case inside the loop: whether its stage controls the force, its control path,
-    its orientation (then the reference motion), its law and its rows of parameters and
-    geometry: the arguments every model function takes."""
+    """One case inside the loop: its model's record, whether its stage controls the force,
+    its control path, its orientation (then the reference motion), its law and its rows of
+    parameters and geometry: the arguments every model function takes."""
 
+    kind: Any
     fc: bool
     ctl: np.ndarray
     orient: np.ndarray

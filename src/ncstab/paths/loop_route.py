@@ -38,21 +38,25 @@ PYTHON_WORK = 60_000
 PYTHON_ROWS = 16_384
 
 
-def machine_code_cached(function: Any) -> bool:
+def machine_code_cached(function: Any, kind: Any = None) -> bool:
     """Whether numba's cache on disk holds machine code of ``function`` (a dispatcher
-    compiled with ``cache=True``): its index file exists."""
-    cache = getattr(function, "_cache", None)
-    index = getattr(getattr(cache, "_cache_file", None), "_index_path", None)
-    return bool(index) and os.path.exists(index)
+    compiled with ``cache=True``): its index file exists; with ``kind``, a model's record
+    (:mod:`ncstab.paths.loop_records`), the index holds code for that kind of model (the
+    loop's entry points are compiled once per kind, into one index)."""
+    cache_file = getattr(getattr(function, "_cache", None), "_cache_file", None)
+    index = getattr(cache_file, "_index_path", None)
+    if not (index and os.path.exists(index)):
+        return False
+    return kind is None or any(type(kind).__name__ in str(key[0]) for key in cache_file._load_index())
 
 
-def runs_plain(backend: str, cases: int, state_size: int, entry: Any) -> bool:
+def runs_plain(backend: str, cases: int, state_size: int, entry: Any, kind: Any = None) -> bool:
     """Whether a batch of ``cases`` cases of state size ``state_size`` runs as plain
     Python under ``backend`` (``PathOptions.backend``), the loop's compiled entry point
-    being ``entry`` (see the module docstring)."""
+    being ``entry`` and the model's record ``kind`` (see the module docstring)."""
     if backend != "auto":
         return backend == "python"
-    if machine_code_cached(entry):
+    if machine_code_cached(entry, kind):
         return False
     return cases * state_size**3 <= PYTHON_WORK
 

@@ -65,8 +65,8 @@ class PathOptions:
     backend
         How the compiled stepper's loop (:mod:`ncstab.paths.compiled`), which
         covers every system and programme, runs: ``"compiled"`` as numba's
-        machine code (compiled once per machine, about a minute per form of
-        law); ``"python"`` as the same text in plain Python (the same numbers,
+        machine code (compiled once per machine, about a minute for the
+        reduced diamond and one and a half for general models); ``"python"`` as the same text in plain Python (the same numbers,
         bit for bit; slow); ``"auto"`` (default) the machine code where numba's
         cache holds it, plain Python for a small study that would otherwise
         wait for the compiler, else the machine code

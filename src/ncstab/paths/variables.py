@@ -59,7 +59,7 @@ VARIABLES: dict[str, tuple[str, str, str]] = {
     "rejected_steps": ("1", "rejected integrator steps", "steps rejected by error control or Newton projection"),
 }
 
-#: Per-event fields: suffix -> (units, long_name template, description template)
+#: Per-event fields: suffix -> (units, long_name, description), each with ``{event}`` to fill in
 EVENT_FIELDS: dict[str, tuple[str, str, str]] = {
     "s": ("1", "arclength at {event}", "located arclength of the first {event} (NaN if none)"),
     "s_lower": ("1", "lower bracket of {event}", "arclength bracket of the located {event}: lower end"),
