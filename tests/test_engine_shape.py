@@ -52,10 +52,10 @@ def test_nothing_in_the_engine_is_a_template():
     assert named == []
 
 
-def test_the_loop_s_modules_are_what_the_plain_route_runs_and_the_cache_name_hashes():
+def test_the_loop_s_modules_are_what_the_plain_route_runs_and_the_cache_folder_hashes():
     # every module of the loop's compiled functions runs as plain Python on the plain route
-    # (ncstab.plain_python) and its text is part of the entry module's cache name
-    from ncstab.paths.compiled_source import ENGINE_MODULES
+    # (ncstab.plain_python) and its text is part of the name of the loop's cache folder
+    from ncstab.engine_cache import ENGINE_MODULES
     from ncstab.plain_python import PLAIN_IMPORTS
 
     loop_modules = {f"ncstab.paths.{path.stem}" for path in PATHS.glob("loop_*.py")} - {
