@@ -9,8 +9,8 @@ entry, and every run that needs that function would fail.
 be read is a cache miss: the function is compiled again and its entry
 rewritten (numba's own save replaces the index and the data).
 
-A miss of one of ncstab's own functions means compiling, which takes 30-90 s
-a form of law the first time on a machine (a small study runs its loop as plain
+A miss of one of ncstab's own functions means compiling, which takes 40-90 s
+a kind of model the first time on a machine (a small study runs its loop as plain
 Python instead, :mod:`ncstab.paths.loop_route`): :func:`harden_numba_cache` also has the
 first miss of a process say so on a terminal (:func:`announce_compilation`),
 so that a new user does not wait in silence.
@@ -26,7 +26,7 @@ __all__ = ["announce_compilation", "harden_numba_cache"]
 
 _MARK = "_ncstab_damaged_entries_are_misses"
 #: What a terminal is told at the first compilation of a process.
-COMPILING_NOTICE = ("ncstab: compiling the engine for this machine (once: 30-90 s a form of law; "
+COMPILING_NOTICE = ("ncstab: compiling the engine for this machine (once: 40-90 s a kind of model; "
                     "the machine code is kept in the cache, `ncstab cache` shows where)")
 _announced = False
 

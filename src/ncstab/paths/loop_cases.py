@@ -17,9 +17,9 @@ from ncstab.jit import entry
 from ncstab.paths.compiled import _EXTENDED, _POWER, _STAGES, Outcome
 from ncstab.paths.contacts import ENTRY_NOISE, ENTRY_PROBE
 from ncstab.paths.loop_dispatch import (
-    aux_size, bifurcation_col, branch_size, column_count, control_col, cuts_always, cycle_col, domain_detail,
-    ev_size, indicators, motion, motion_product, motion_size, next_state, project, rhs, set_reference,
-    set_state, state_size, store_event, store_record, switch_bit, target_col, tries_degenerate, turn_record,
+    aux_size, branch_size, cuts_always, domain_detail, ev_size, event_columns, indicators, motion, motion_product,
+    motion_size, next_state, project, rhs, set_reference, set_state, state_size, store_event, store_record,
+    switch_bit, tries_degenerate, turn_record,
 )
 from ncstab.paths.loop_numerics import (
     dense_value, first_column, next_degenerate_length, next_over_length, piece_count, sign,
@@ -65,7 +65,7 @@ def run_cases(cases, rows, stage, turns, events, records, outcomes, model, setti
     force_controlled, control_rows, lam_end, target_sign, orientation, reference = stage[:6]
     secondary_state, cycles_done, switch_pending = stage[6:]
     turns_count, first_turn, turn_closed, turn_values = turns
-    stop_row, break_row, event_columns, event_found, event_values, event_stage = events
+    stop_row, break_row, columns_of_event, event_found, event_values, event_stage = events
     recorded, record_count, stage_number = records
     code, detail = outcomes
     kind, law, parameters, geometry = model
@@ -74,9 +74,9 @@ def run_cases(cases, rows, stage, turns, events, records, outcomes, model, setti
     capacity = recorded[0].shape[1]
     first = geometry[cases[0]]  # (the sizes are those of every case)
     M = state_size(kind, y[cases[0]])
-    n_columns, n_motion = column_count(kind, first), motion_size(kind, first)
-    target_column, cycle_column, control_column = target_col(kind, first), cycle_col(kind, first), control_col(kind, first)
-    bifurcation_column = bifurcation_col(kind, first)
+    columns, n_motion = event_columns(kind, first), motion_size(kind, first)
+    n_columns, target_column, cycle_column = columns.count, columns.target, columns.cycle
+    bifurcation_column, control_column = columns.bifurcation, columns.control
     stages = np.empty((_EXTENDED, M))
     y0 = np.empty(M)
     y_raw = np.empty(M)
@@ -269,8 +269,8 @@ def run_cases(cases, rows, stage, turns, events, records, outcomes, model, setti
                 is_cut = np.isfinite(cut_sigma)
                 reach = cut_sigma if is_cut else span
                 switched = False
-                for e in range(event_columns.shape[0]):  # _store_first_events
-                    c = first_column(event_columns[e], sigma)
+                for e in range(columns_of_event.shape[0]):  # _store_first_events
+                    c = first_column(columns_of_event[e], sigma)
                     if c >= 0 and np.isfinite(sigma[c]) and sigma[c] <= reach + settings.event_tol and not event_found[e, i]:
                         rhs(kind, located_states[c], fc, ctl, orient, law, p, geo, work[2], ev, aux)
                         event_found[e, i], event_stage[e, i] = True, stage_number

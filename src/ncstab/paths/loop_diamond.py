@@ -24,14 +24,15 @@ from ncstab.paths.loop_diamond_model import (
     rhs, rhs_hot, tangent,
 )
 from ncstab.paths.loop_numerics import richardson_arc
+from ncstab.paths.loop_records import EventColumns
 from ncstab.paths.loop_signs import signed_gap, target_indicator
 
 __all__ = [
-    "alignment", "arc_through", "aux_size", "bifurcation_col", "branch_size", "column_count", "control_col",
-    "cuts_always", "cycle_col", "domain_detail", "ev_size", "evaluate", "indicators", "limit_col", "motion",
+    "alignment", "arc_through", "aux_size", "branch_size", "cuts_always", "domain_detail", "ev_size", "evaluate",
+    "event_columns", "indicators", "motion",
     "motion_product", "motion_size", "next_state", "no_tangent", "project", "rhs", "rhs_hot", "set_reference",
     "set_state", "state_indicator", "state_size", "store_event", "store_record", "switch_bit", "tangent_at",
-    "target_col", "tries_degenerate", "turn_record", "turning_col", "was_flipped",
+    "tries_degenerate", "turn_record", "was_flipped",
 ]
 
 n_columns, target_column, turning_column, cycle_column = _N_COLUMNS, TARGET_COLUMN, TURNING_COLUMN, CYCLE_COLUMN
@@ -67,38 +68,10 @@ def motion_size(kind, geo):
 
 
 @hot
-def column_count(kind, geo):
-    return n_columns
-
-
-@hot
-def target_col(kind, geo):
-    return target_column
-
-
-@hot
-def cycle_col(kind, geo):
-    return cycle_column
-
-
-@hot
-def turning_col(kind, geo):
-    return turning_column
-
-
-@hot
-def bifurcation_col(kind, geo):
-    return bifurcation_column
-
-
-@hot
-def limit_col(kind, geo):
-    return limit_column
-
-
-@hot
-def control_col(kind, geo):
-    return control_column
+def event_columns(kind, geo):
+    return EventColumns(
+        n_columns, target_column, cycle_column, turning_column, bifurcation_column, limit_column, control_column
+    )
 
 
 @hot

@@ -30,11 +30,11 @@ from ncstab.paths import loop_diamond, loop_general_output
 from ncstab.paths.loop_records import DiamondModel, GeneralModel
 
 __all__ = [  # noqa: RUF022 (MODEL_FUNCTIONS, in its order)
-    "MODELS", "MODEL_FUNCTIONS", "state_size", "ev_size", "aux_size", "motion_size", "column_count", "target_col",
-    "cycle_col", "turning_col", "bifurcation_col", "limit_col", "control_col", "switch_bit", "next_state",
-    "cuts_always", "set_state", "tries_degenerate", "evaluate", "rhs", "rhs_hot", "tangent_at", "no_tangent",
-    "was_flipped", "alignment", "branch_size", "set_reference", "motion", "motion_product", "indicators",
-    "state_indicator", "project", "domain_detail", "arc_through", "turn_record", "store_record", "store_event",
+    "MODELS", "MODEL_FUNCTIONS", "state_size", "ev_size", "aux_size", "motion_size", "event_columns", "switch_bit",
+    "next_state", "cuts_always", "set_state", "tries_degenerate", "evaluate", "rhs", "rhs_hot", "tangent_at",
+    "no_tangent", "was_flipped", "alignment", "branch_size", "set_reference", "motion", "motion_product",
+    "indicators", "state_indicator", "project", "domain_detail", "arc_through", "turn_record", "store_record",
+    "store_event",
 ]
 
 #: Each kind of model's record and the module of its functions.
@@ -45,11 +45,10 @@ MODELS = {DiamondModel: loop_diamond, GeneralModel: loop_general_output}
 #: it), the tangent, the Newton projection, the indicators, the domain check, the arc of
 #: an over step, and what is stored.
 MODEL_FUNCTIONS = (
-    "state_size", "ev_size", "aux_size", "motion_size", "column_count", "target_col", "cycle_col", "turning_col",
-    "bifurcation_col", "limit_col", "control_col", "switch_bit", "next_state", "cuts_always", "set_state",
-    "tries_degenerate", "evaluate", "rhs", "rhs_hot", "tangent_at", "no_tangent", "was_flipped", "alignment",
-    "branch_size", "set_reference", "motion", "motion_product", "indicators", "state_indicator", "project",
-    "domain_detail", "arc_through", "turn_record", "store_record", "store_event",
+    "state_size", "ev_size", "aux_size", "motion_size", "event_columns", "switch_bit", "next_state", "cuts_always",
+    "set_state", "tries_degenerate", "evaluate", "rhs", "rhs_hot", "tangent_at", "no_tangent", "was_flipped",
+    "alignment", "branch_size", "set_reference", "motion", "motion_product", "indicators", "state_indicator",
+    "project", "domain_detail", "arc_through", "turn_record", "store_record", "store_event",
 )
 
 
@@ -90,13 +89,7 @@ state_size = _dispatched("state_size")
 ev_size = _dispatched("ev_size")
 aux_size = _dispatched("aux_size")
 motion_size = _dispatched("motion_size")
-column_count = _dispatched("column_count")
-target_col = _dispatched("target_col")
-cycle_col = _dispatched("cycle_col")
-turning_col = _dispatched("turning_col")
-bifurcation_col = _dispatched("bifurcation_col")
-limit_col = _dispatched("limit_col")
-control_col = _dispatched("control_col")
+event_columns = _dispatched("event_columns")
 switch_bit = _dispatched("switch_bit")
 next_state = _dispatched("next_state")
 cuts_always = _dispatched("cuts_always")

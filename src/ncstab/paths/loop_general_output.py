@@ -25,14 +25,15 @@ from ncstab.paths.loop_general import (
     rhs_hot, set_reference, tangent_at, was_flipped,
 )
 from ncstab.paths.loop_numerics import richardson_arc
+from ncstab.paths.loop_records import EventColumns
 from ncstab.paths.loop_signs import signed_gap, significant, target_indicator
 
 __all__ = [
-    "alignment", "arc_through", "aux_size", "bifurcation_col", "branch_size", "column_count", "control_col",
-    "cuts_always", "cycle_col", "domain_detail", "ev_size", "evaluate", "indicators", "limit_col", "motion",
+    "alignment", "arc_through", "aux_size", "branch_size", "cuts_always", "domain_detail", "ev_size", "evaluate",
+    "event_columns", "indicators", "motion",
     "motion_product", "motion_size", "next_state", "no_tangent", "project", "rhs", "rhs_hot", "set_reference",
     "set_state", "state_indicator", "state_size", "store_event", "store_record", "switch_bit", "tangent_at",
-    "target_col", "tries_degenerate", "turn_record", "turning_col", "was_flipped",
+    "tries_degenerate", "turn_record", "was_flipped",
 ]
 
 
@@ -57,38 +58,10 @@ def motion_size(kind, geo):
 
 
 @njit
-def column_count(kind, geo):
-    return geo[G_COLUMNS]
-
-
-@njit
-def target_col(kind, geo):
-    return geo[G_TARGET]
-
-
-@njit
-def cycle_col(kind, geo):
-    return geo[G_CYCLE]
-
-
-@njit
-def turning_col(kind, geo):
-    return geo[G_TURNING]
-
-
-@njit
-def bifurcation_col(kind, geo):
-    return geo[G_BIFURCATION]
-
-
-@njit
-def limit_col(kind, geo):
-    return geo[G_LIMIT]
-
-
-@njit
-def control_col(kind, geo):
-    return geo[G_CONTROL]
+def event_columns(kind, geo):
+    return EventColumns(
+        geo[G_COLUMNS], geo[G_TARGET], geo[G_CYCLE], geo[G_TURNING], geo[G_BIFURCATION], geo[G_LIMIT], geo[G_CONTROL]
+    )
 
 
 @njit

@@ -36,6 +36,7 @@ __all__ = [
     "Case",
     "CaseRows",
     "DiamondModel",
+    "EventColumns",
     "Evaluation",
     "EventTables",
     "GeneralModel",
@@ -131,6 +132,21 @@ class GeneralModel(NamedTuple):
     model functions are a general model's (:mod:`ncstab.paths.loop_dispatch`)."""
 
     rate_form: bool  #: whether some law of the model has no total form (no Newton projection)
+
+
+class EventColumns(NamedTuple):
+    """Where a model's event indicators are (:mod:`ncstab.paths.events`): how many columns,
+    and those of the stage target, of the end of a turn, of dlambda (turning points), of
+    the branch test (simple bifurcation points), of det K (limit points) and of the mixed
+    control's determinant (loss of controllability)."""
+
+    count: int
+    target: int
+    cycle: int
+    turning: int
+    bifurcation: int
+    limit: int
+    control: int
 
 
 class ModelRows(NamedTuple):

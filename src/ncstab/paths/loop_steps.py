@@ -15,8 +15,7 @@ from ncstab.jit import njit
 from ncstab.paths.compiled import _EXTENDED, _POWER, _STAGES
 from ncstab.paths.events import TINY
 from ncstab.paths.loop_dispatch import (
-    bifurcation_col, evaluate, indicators, limit_col, no_tangent, project, rhs, rhs_hot, state_indicator,
-    state_size, tangent_at, turning_col,
+    evaluate, event_columns, indicators, no_tangent, project, rhs, rhs_hot, state_indicator, state_size, tangent_at,
 )
 from ncstab.paths.loop_numerics import (
     A_COUNT, A_TERMS, B_COUNT, B_TERMS, D_COUNT, D_TERMS, A, B, D, combine, dense_value, error_norm, sign,
@@ -64,7 +63,8 @@ def indicator_at(y, column, case, goal, settings, ev, aux, values):
         project(kind, y, fc, ctl, law, p, geo, newton_tol, newton_max_iter, ev)
     else:
         evaluate(kind, y, ctl, law, p, geo, ev)
-    if column == turning_col(kind, geo) or column == bifurcation_col(kind, geo):
+    columns = event_columns(kind, geo)
+    if column == columns.turning or column == columns.bifurcation:
         tangent_at(kind, y, fc, ctl, orient, ev, aux, geo)
     else:
         no_tangent(kind, aux)
@@ -118,7 +118,8 @@ def locate(column, offset, span, phi0, phi1, interpolant, case, goal, settings, 
 def drop_limit_at_bifurcation(kind, sigma, span, geo):
     # a zero of det K where the branch test
     # changes sign too (within 1e-6 of the piece) is a simple bifurcation point
-    bifurcation, limit = bifurcation_col(kind, geo), limit_col(kind, geo)
+    columns = event_columns(kind, geo)
+    bifurcation, limit = columns.bifurcation, columns.limit
     if bifurcation >= 0 and np.isfinite(sigma[bifurcation]) and abs(sigma[limit] - sigma[bifurcation]) <= 1e-6 * span:
         sigma[limit] = np.inf
 
