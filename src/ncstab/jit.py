@@ -19,7 +19,10 @@ from ncstab.engine_cache import register_engine_cache
 
 __all__ = ["entry", "hot", "njit"]
 
-#: A function of the loop, compiled into its callers' machine code.
+#: A function of the loop, compiled into its callers' machine code.  Without a Python
+#: wrapper (16 s of the general models' 75 s of compilation): called from Python it would
+#: crash; read and run the loop's modules as plain Python instead
+#: (:func:`ncstab.plain_python.plain_import`, ``backend = "python"``).
 njit = numba.njit(cache=False, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 
 #: One of every DOP853 stage (the model's evaluation and tangent, the stage sums),

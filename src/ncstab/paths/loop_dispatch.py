@@ -15,7 +15,8 @@ the model's module (:data:`MODELS`: :mod:`ncstab.paths.loop_diamond`,
   and nothing is looked up while stepping; a function the model inlines
   (``inline="always"``: those of every DOP853 stage) is inlined here too;
 * run as plain Python (:mod:`ncstab.plain_python`), it is looked up by the
-  record's type.
+  record's type; called from Python, it runs the model's module as plain Python
+  (the model's compiled functions have no Python wrapper: :mod:`ncstab.jit`).
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from numba import extending
 
 from ncstab.paths import loop_diamond, loop_general_output
 from ncstab.paths.loop_records import DiamondModel, GeneralModel
+from ncstab.plain_python import plain_import
 
 __all__ = [  # noqa: RUF022 (MODEL_FUNCTIONS, in its order)
     "MODELS", "MODEL_FUNCTIONS", "state_size", "ev_size", "aux_size", "motion_size", "event_columns", "switch_bit",
@@ -56,7 +58,11 @@ def _dispatched(name: str) -> Callable[..., Any]:
     """The function ``name`` of the model whose record is its first argument (see the module docstring)."""
 
     def call(kind: Any, *args: Any) -> Any:
-        return getattr(MODELS[type(kind)], name)(kind, *args)
+        module = MODELS[type(kind)]
+        function = getattr(module, name)
+        if hasattr(function, "py_func"):  # numba's, without a Python wrapper: the module run as plain Python
+            function = getattr(plain_import(module.__name__), name)
+        return function(kind, *args)
 
     call.__name__ = call.__qualname__ = name
     call.__doc__ = f"The model's ``{name}`` (:mod:`ncstab.paths.loop_dispatch`)."
