@@ -18,8 +18,7 @@ or a closed turn of a cycle stage (the circle of its control path); steps
 over simple bifurcation points (:mod:`ncstab.paths.over_steps`) or returns
 the case there to switch branch; finds the domain's edge inside a step
 (:mod:`ncstab.paths.domain_edge`).  Its result for a case depends neither on
-the batch nor on the thread (alpha from the C library's ``atan2``:
-:mod:`ncstab.paths.c_library`).
+the batch nor on the thread (each case runs through the loop alone).
 
 One loop steps every system: the reduced diamond (its law's fused kernel,
 :mod:`ncstab.paths.loop_diamond_model` and :mod:`ncstab.paths.loop_diamond`),

@@ -13,7 +13,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ncstab.laws.catalogue import no_tension_branches
-from ncstab.paths.c_library import atan2
 from ncstab.paths.evaluation import Evaluation
 from ncstab.paths.events import DIAMOND_COLUMNS, IndicatorLayout
 from ncstab.laws.registry import Law
@@ -205,7 +204,7 @@ class CaseBatch(DiamondBatchTraits):
         packed = np.empty((_PACKED, size))
         length, alpha = packed[_L], packed[_ALPHA]
         np.sqrt(vertical * vertical + horizontal * horizontal, out=length)
-        atan2(horizontal, vertical, out=alpha)  # the C library's, as the compiled loop (c_library)
+        np.arctan2(horizontal, vertical, out=alpha)  # within a rounding of the loop's (docs/paths.md: alpha at stage entry)
         cos_a, sin_a = vertical / length, horizontal / length
         t_in = internal[:, 0] if internal.shape[-1] else 0.0
         parameters = self.law.parameter_values()
