@@ -19,21 +19,15 @@ from ncstab.paths.compiled import _N_COLUMNS, BREAK_ALWAYS, STATE_SLOT
 from ncstab.paths.events import (
     BIFURCATION_COLUMN, CYCLE_COLUMN, INDICATOR_EVENTS, INDICATOR_GAP, TARGET_COLUMN, TURNING_COLUMN,
 )
-from ncstab.paths.loop_diamond_model import (
-    alignment, angle, branch_size, control, evaluate, gap, indicators, internal_count, motion, motion_product,
-    rhs, rhs_hot, tangent,
+from ncstab.paths.loop_diamond_model import angle, control, evaluate, gap, internal_count, tangent
+from ncstab.paths.loop_diamond_model import (  # noqa: F401 (handed on: the diamond's MODEL_FUNCTIONS)
+    alignment, branch_size, indicators, motion, motion_product, rhs, rhs_hot,
 )
 from ncstab.paths.loop_numerics import richardson_arc
-from ncstab.paths.loop_records import EventColumns
+from ncstab.paths.loop_records import MODEL_FUNCTIONS, EventColumns
 from ncstab.paths.loop_signs import signed_gap, target_indicator
 
-__all__ = [
-    "alignment", "arc_through", "aux_size", "branch_size", "cuts_always", "domain_detail", "ev_size", "evaluate",
-    "event_columns", "indicators", "motion",
-    "motion_product", "motion_size", "next_state", "no_tangent", "project", "rhs", "rhs_hot", "set_reference",
-    "set_state", "state_indicator", "state_size", "store_event", "store_record", "switch_bit", "tangent_at",
-    "tries_degenerate", "turn_record", "was_flipped",
-]
+__all__ = list(MODEL_FUNCTIONS)  # (those of loop_diamond_model and loop_general it imports included)
 
 n_columns, target_column, turning_column, cycle_column = _N_COLUMNS, TARGET_COLUMN, TURNING_COLUMN, CYCLE_COLUMN
 bifurcation_column, limit_column = BIFURCATION_COLUMN, INDICATOR_EVENTS.index("limit_point")

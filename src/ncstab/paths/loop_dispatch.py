@@ -28,7 +28,7 @@ from typing import Any
 from numba import extending
 
 from ncstab.paths import loop_diamond, loop_general_output
-from ncstab.paths.loop_records import DiamondModel, GeneralModel
+from ncstab.paths.loop_records import MODEL_FUNCTIONS, DiamondModel, GeneralModel
 from ncstab.plain_python import plain_import
 
 __all__ = [  # noqa: RUF022 (MODEL_FUNCTIONS, in its order)
@@ -42,16 +42,7 @@ __all__ = [  # noqa: RUF022 (MODEL_FUNCTIONS, in its order)
 #: Each kind of model's record and the module of its functions.
 MODELS = {DiamondModel: loop_diamond, GeneralModel: loop_general_output}
 
-#: What the shared parts ask of a model: sizes, event columns, the contact state, the
-#: evaluation and dy/ds (``rhs``, and ``rhs_hot`` inlined where every DOP853 stage calls
-#: it), the tangent, the Newton projection, the indicators, the domain check, the arc of
-#: an over step, and what is stored.
-MODEL_FUNCTIONS = (
-    "state_size", "ev_size", "aux_size", "motion_size", "event_columns", "switch_bit", "next_state", "cuts_always",
-    "set_state", "tries_degenerate", "evaluate", "rhs", "rhs_hot", "tangent_at", "no_tangent", "was_flipped",
-    "alignment", "branch_size", "set_reference", "motion", "motion_product", "indicators", "state_indicator",
-    "project", "domain_detail", "arc_through", "turn_record", "store_record", "store_event",
-)
+
 
 
 def _dispatched(name: str) -> Callable[..., Any]:

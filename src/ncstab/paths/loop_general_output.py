@@ -20,21 +20,18 @@ from ncstab.operators.onset_cases import damped_onset, eigenvalue_discriminant, 
 from ncstab.paths.loop_general import (
     G_BIFURCATION, G_BLOCKING, G_COLUMNS, G_CONTROL, G_CYCLE, G_DAMPING, G_DIVERGENCE, G_DOMAIN, G_EVSIZE,
     G_FORCES, G_GAPCOL, G_GAPS, G_INTERACTIONS, G_LIMIT, G_MASS, G_N, G_NGAPS, G_NINT, G_NOPEN, G_NORMALCOL,
-    G_OVERLAPS, G_ROW, G_SIZE, G_STIFFNESS, G_T, G_TARGET, G_TCOUNT, G_TSTRIDE, G_TURNING, alignment,
-    branch_size, control_system, displacement, evaluate, motion, motion_product, no_tangent, project, rhs,
-    rhs_hot, set_reference, tangent_at, was_flipped,
+    G_OVERLAPS, G_ROW, G_SIZE, G_STIFFNESS, G_T, G_TARGET, G_TCOUNT, G_TSTRIDE, G_TURNING, control_system,
+    displacement, evaluate,
+)
+from ncstab.paths.loop_general import (  # noqa: F401 (handed on: a general model's MODEL_FUNCTIONS)
+    alignment, branch_size, motion, motion_product, no_tangent, project, rhs, rhs_hot, set_reference, tangent_at,
+    was_flipped,
 )
 from ncstab.paths.loop_numerics import richardson_arc
-from ncstab.paths.loop_records import EventColumns
+from ncstab.paths.loop_records import MODEL_FUNCTIONS, EventColumns
 from ncstab.paths.loop_signs import signed_gap, significant, target_indicator
 
-__all__ = [
-    "alignment", "arc_through", "aux_size", "branch_size", "cuts_always", "domain_detail", "ev_size", "evaluate",
-    "event_columns", "indicators", "motion",
-    "motion_product", "motion_size", "next_state", "no_tangent", "project", "rhs", "rhs_hot", "set_reference",
-    "set_state", "state_indicator", "state_size", "store_event", "store_record", "switch_bit", "tangent_at",
-    "tries_degenerate", "turn_record", "was_flipped",
-]
+__all__ = list(MODEL_FUNCTIONS)  # (those of loop_general it imports included)
 
 
 @hot

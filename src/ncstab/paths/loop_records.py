@@ -42,6 +42,7 @@ __all__ = [
     "GeneralModel",
     "Goal",
     "Interpolant",
+    "MODEL_FUNCTIONS",
     "ModelRows",
     "Outcomes",
     "Records",
@@ -118,6 +119,19 @@ class Outcomes(NamedTuple):
 
     code: np.ndarray
     detail: np.ndarray
+
+
+#: What the shared modules of the loop ask of a model (:mod:`ncstab.paths.loop_dispatch`):
+#: sizes, event columns, the contact state, the evaluation and dy/ds (``rhs``, and
+#: ``rhs_hot`` inlined where every DOP853 stage calls it), the tangent, the Newton
+#: projection, the indicators, the domain check, the arc of an over step, and what is
+#: stored.  The module of each kind of model defines them all, with the same parameters.
+MODEL_FUNCTIONS = (
+    "state_size", "ev_size", "aux_size", "motion_size", "event_columns", "switch_bit", "next_state", "cuts_always",
+    "set_state", "tries_degenerate", "evaluate", "rhs", "rhs_hot", "tangent_at", "no_tangent", "was_flipped",
+    "alignment", "branch_size", "set_reference", "motion", "motion_product", "indicators", "state_indicator",
+    "project", "domain_detail", "arc_through", "turn_record", "store_record", "store_event",
+)
 
 
 class DiamondModel(NamedTuple):
