@@ -26,6 +26,10 @@ from ncstab.paths.loop_records import DiamondModel, EventColumns, GeneralModel
 def test_every_model_defines_every_function_the_loop_asks_for_with_the_same_parameters():
     import inspect
 
+    from ncstab.paths.loop_records import MODEL_FUNCTIONS
+
+    assert [name for name in loop_dispatch.__all__ if not name.startswith("MODEL")] == list(MODEL_FUNCTIONS)
+    assert loop_diamond.__all__ == loop_general_output.__all__ == list(MODEL_FUNCTIONS)
     for name in loop_dispatch.MODEL_FUNCTIONS:
         diamond, general = (getattr(module, name).py_func for module in (loop_diamond, loop_general_output))
         assert inspect.signature(diamond) == inspect.signature(general), name

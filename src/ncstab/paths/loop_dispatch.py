@@ -43,8 +43,6 @@ __all__ = [  # noqa: RUF022 (MODEL_FUNCTIONS, in its order)
 MODELS = {DiamondModel: loop_diamond, GeneralModel: loop_general_output}
 
 
-
-
 def _dispatched(name: str) -> Callable[..., Any]:
     """The function ``name`` of the model whose record is its first argument (see the module docstring)."""
 
