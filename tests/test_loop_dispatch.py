@@ -119,3 +119,21 @@ def _digest_with(root):
     finally:
         engine_cache._SOURCE_ROOT = saved
         engine_cache.engine_digest.cache_clear()
+
+
+def test_the_route_asks_whether_the_index_holds_code_for_this_kind_of_model(tmp_path):
+    # one index per entry point holds both kinds of model: the diamond's code cached does
+    # not make a general model's batch wait for the compiler (it runs as plain Python)
+    from ncstab.paths.loop_route import machine_code_cached, runs_plain
+
+    index = tmp_path / "loop_cases.run_cases-66.py311.nbi"
+    index.write_bytes(b"")
+    diamond_signature = ("array(int64, 1d, C)", "ModelRows(DiamondModel(bool x 1), ...)")
+    cache_file = types.SimpleNamespace(_index_path=str(index), _load_index=lambda: {(diamond_signature, "cpu"): "1"})
+    entry = types.SimpleNamespace(_cache=types.SimpleNamespace(_cache_file=cache_file))
+    assert machine_code_cached(entry) and machine_code_cached(entry, DiamondModel(rate_form=True))
+    assert not machine_code_cached(entry, GeneralModel(rate_form=False))
+    assert not runs_plain("auto", 1, 14, entry, DiamondModel(rate_form=False))  # cached: machine code
+    assert runs_plain("auto", 1, 14, entry, GeneralModel(rate_form=False))  # not cached, small: plain
+    index.unlink()
+    assert not machine_code_cached(entry, DiamondModel(rate_form=True))  # no index at all
