@@ -33,10 +33,10 @@ from pathlib import Path
 
 __all__ = ["ENGINE_ITEMS", "GENERAL_ITEMS", "compile_items", "compile_loops", "groups_by_model"]
 
-#: The general models' loop, followed with a law of each form.
+#: The general models' items: their loop (a column's path), a ring's kernel under a rate law.
 GENERAL_ITEMS = ("general-total", "general-rate")
-#: What ``ncstab cache compile`` compiles: the diamond's loop and the general models' (each
-#: with a law of each form, whose kernels are compiled too).
+#: What ``ncstab cache compile`` compiles: the diamond's loop (with a law of each form,
+#: whose kernels are compiled too) and the general models' items.
 ENGINE_ITEMS = ("mcnamara", "cundall_strack", *GENERAL_ITEMS)
 #: Seconds one process may take (a loop compiles in 30-90 s on 2 cores, more under load).
 PROCESS_TIMEOUT = 900

@@ -194,14 +194,6 @@ def stage_loop(kind: Any, plain: bool = False) -> StageLoop:
     return StageLoop(cases.run_cases, start.start, start.settle, kind=kind)
 
 
-def loop_entry() -> Any:
-    """The compiled loop's entry point (``run_cases``, not compiled by this call), whose
-    machine code in numba's cache decides the route (:mod:`ncstab.paths.loop_route`)."""
-    from ncstab.paths.loop_cases import run_cases
-
-    return run_cases
-
-
 @functools.cache
 def _overlap_function(definition: Any) -> Callable[..., Any]:
     """delta(l, alpha, *parameters), the normal overlap of a no_tension law (before any

@@ -56,7 +56,7 @@ def choose_engine(
         kind = GeneralModel(rate_form) if general else DiamondModel(rate_form)
         cases = max(batch.size, study_cases or 0)
         plain = runs_plain(
-            options.backend, cases, StateLayout(batch.n_dof, batch.n_internal).size, compiled.loop_entry(), kind
+            options.backend, cases, StateLayout(batch.n_dof, batch.n_internal).size, compiled.stage_loop(kind).run, kind
         )
     engine = f"compiled stepper (numba {compiled.numba.__version__})"
     if isinstance(batch, ModelBatch):
