@@ -98,8 +98,9 @@ def pytest_unconfigure(config: pytest.Config) -> None:
 #: second, where a test first follows them).
 WARM_LAWS = ("cundall_strack", "weakly_hypoelastic", "mcnamara", "turco")
 #: The general models' loop (:mod:`ncstab.paths.loop_general`), warmed by a column of four
-#: links, and the kernel of a ring of four grains under a rate law (:mod:`ncstab.engine_warmup`).
-WARM_GENERAL = ("general-total", "general-rate")
+#: links, the kernel of a ring of four grains under a rate law and the Dataset's indicators
+#: (:mod:`ncstab.engine_warmup`).
+WARM_GENERAL = ("general-total", "general-rate", "dataset")
 
 
 def warm_compiled_loops(laws: tuple[str, ...], processes: int) -> None:

@@ -238,12 +238,13 @@ def test_a_read_only_folder_gives_exit_code_3_and_names_what_stayed(root, capsys
 
 
 def test_compile_compiles_every_loop_in_processes_by_model_and_says_so(capsys):
-    """On the session's cache (the warm-up compiled the loops, so it takes seconds): four
-    items in two processes, the general models' loop apart from the diamond's laws and a
-    ring's kernel, so that no two processes compile the same loop."""
+    """On the session's cache (the warm-up compiled the loops, so it takes seconds): five
+    items in two processes, the general models' loop apart from the diamond's laws, a
+    ring's kernel and the Dataset's indicators, so that no two processes compile the same loop."""
     from ncstab.engine_warmup import ENGINE_ITEMS, groups_by_model
 
-    assert groups_by_model(ENGINE_ITEMS, 2) == [("mcnamara", "cundall_strack", "general-rate"), ("general-total",)]
+    assert groups_by_model(ENGINE_ITEMS, 2) == [
+        ("mcnamara", "cundall_strack", "general-rate", "dataset"), ("general-total",)]
     (single,) = groups_by_model(ENGINE_ITEMS, 1)
     assert sorted(single) == sorted(ENGINE_ITEMS)
     code, out, err = _ncstab(capsys, "compile")
@@ -251,7 +252,7 @@ def test_compile_compiles_every_loop_in_processes_by_model_and_says_so(capsys):
     lines = out.splitlines()
     assert lines[0].startswith("compiling the compiled stepper's 2 loops (the reduced diamond's, the general models') into ")
     assert sorted(line.split(" in ")[0] for line in lines[1:3]) == [
-        "  compiled for general-total", "  compiled for mcnamara, cundall_strack, general-rate"]
+        "  compiled for general-total", "  compiled for mcnamara, cundall_strack, general-rate, dataset"]
     assert re.fullmatch(r"done in \d+ s: studies of any size now start at once", lines[3])
 
 

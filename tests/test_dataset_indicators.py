@@ -1,15 +1,20 @@
-"""The Dataset's indicators in blocks of cases (ncstab.paths.dataset_indicators).
+"""The Dataset's indicators: the stage loop's per-state functions over the stored states.
 
-Every indicator is a function of one stored state, so computing them in
-blocks of cases on one or two threads must give, bit for bit, what the
-operators give on the whole sweep at once: the test calls
-:mod:`ncstab.operators` on the whole contiguous arrays and compares with
-``assert_array_equal`` (NaN in the same places, every other value equal).
-Blocks of one or two cases (``BLOCK_STATES`` shrunk) cut the sweep
-everywhere; the systems: the diamond under two stages with two laws (the
-mixed control changes with the stage, the paths have different lengths,
-NaN padding after the shorter ones) and Ziegler's pendulum with masses
-swept (the flutter variable from M(u), C and K with per-case parameters).
+``ncstab.operators.state_kernel`` holds the indicators of one state (det K, the
+least eigenvalue of K_sym, the normalised second-order work, the discriminant of
+K, det K_SS of the stage's mixed control); the compiled stage loop calls them for
+its events and the Dataset runs them over every stored state
+(``stored_state_indicators``).  Checked here:
+
+* for two dofs (the diamond under two stages and two laws, paths of different
+  lengths, NaN padding; Ziegler's pendulum with masses swept, whose ``flutter``
+  variable comes from M(u), C and K): bit for bit what numpy's vectorized
+  operators (``ncstab.operators.indicators``) give on the whole sweep at once;
+* the same functions run as plain Python and as machine code: bit for bit;
+* beyond two dofs, against LAPACK through numpy on random matrices, to 1e-12
+  relative (LU and symmetric eigenvalues in another order of operations: a few
+  roundings of the matrix's scale);
+* the mixed control follows each state's own stage.
 """
 
 from __future__ import annotations
@@ -18,11 +23,13 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from ncstab.operators.indicators import det_K, hill_eigenvalue, skew_part, symmetric_part
-from ncstab.paths import SystemSpec, dataset_indicators, follow
+from ncstab.operators import state_kernel
+from ncstab.operators.indicators import (
+    det_K, flutter_discriminant, hill_eigenvalue, mixed_control_determinant, skew_part, symmetric_part,
+)
+from ncstab.paths import SystemSpec, follow
 from ncstab.paths.dataset_dynamics import case_parameters, flutter_variable
-from ncstab.paths.dataset_indicators import normalised_work, state_indicators
-from ncstab.paths.threads import thread_limit, using_threads
+from ncstab.paths.dataset_indicators import state_indicators
 
 DIAMOND = (
     SystemSpec(secondary_contacts="ignore"),
@@ -47,27 +54,37 @@ def _stored(path, key: str) -> np.ndarray:
     return array.reshape(path.shape + array.shape[2:])
 
 
+def _normalised_work(K: np.ndarray, du: np.ndarray) -> np.ndarray:
+    """du . K du / (|K du| |du|) by numpy: einsum and norms."""
+    dF = np.einsum("...ij,...j->...i", K, du)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.einsum("...i,...i->...", dF, du) / (np.linalg.norm(dF, axis=-1) * np.linalg.norm(du, axis=-1))
+
+
+def _on_route(monkeypatch, route: str) -> None:
+    """Have the kernel run as plain Python or as machine code, whatever numba's cache holds."""
+    from ncstab.paths import loop_route
+
+    plain = route == "plain"
+    monkeypatch.setattr(loop_route, "machine_code_cached", lambda *args: not plain)
+    monkeypatch.setattr(loop_route, "PYTHON_ROWS", 1 << 30 if plain else -1)
+
+
 @pytest.fixture(scope="module", params=["diamond", "ziegler"])
 def path(request):
     return follow(*(DIAMOND if request.param == "diamond" else ZIEGLER))
 
 
-@pytest.mark.parametrize("threads", [1, 2])
-def test_blocks_of_cases_give_the_operators_on_the_whole_sweep_bit_for_bit(path, threads, monkeypatch):
-    if threads > thread_limit():
-        pytest.skip("numba runs one thread here (NUMBA_NUM_THREADS or one core)")
+@pytest.mark.parametrize("route", ["plain", "machine code"])
+def test_two_dofs_give_numpy_s_operators_on_the_whole_sweep_bit_for_bit(path, route, monkeypatch):
+    _on_route(monkeypatch, route)
     K, u, du, stage = (_stored(path, key) for key in ("K", "u", "du", "stage"))
     length = stage.shape[-1]
     assert len({int(n) for r in path.results for n in r.n_steps}) > 1 or path.shape[0] == 1  # padded paths
-    monkeypatch.setattr(dataset_indicators, "BLOCK_STATES", length + 1)  # one case per block
-    with using_threads(threads):
-        K_out, u_out, got = state_indicators(path, K, u, du, stage)
-    np.testing.assert_array_equal(K_out, K)
-    np.testing.assert_array_equal(u_out, u)
-    assert K_out.flags.c_contiguous and u_out.flags.c_contiguous
+    got = state_indicators(path, K, u, du, stage)
     whole = {
         "K_sym": symmetric_part(K), "K_skew": skew_part(K), "det_K": det_K(K), "hill": hill_eigenvalue(K),
-        "d2W": normalised_work(K, du),
+        "d2W": _normalised_work(K, du),
         "flutter": flutter_variable(path, u, K, case_parameters(path, (length,))),
         "mixed_control": path.mixed_control(K, stage),
     }
@@ -80,24 +97,85 @@ def test_blocks_of_cases_give_the_operators_on_the_whole_sweep_bit_for_bit(path,
         assert np.isfinite(got[name]).any(), name  # the comparison is not between NaN arrays only
 
 
-def test_the_dataset_is_the_same_whatever_the_block_size(path, monkeypatch):
-    """The whole Dataset (indicators included) with blocks of one case and with the default."""
-    default = path.to_dataset()
-    monkeypatch.setattr(dataset_indicators, "BLOCK_STATES", 1)  # at least one case per block
-    small = path.to_dataset()
-    for dataset in (default, small):
-        dataset.attrs.pop("created", None)
-    xr.testing.assert_identical(default, small)
+def test_the_recorder_s_views_are_read_where_they_are(path):
+    """A view with room between the cases (the recorder's padded rows) gives what its
+    contiguous copy gives, and the kernel leaves both untouched."""
+    K, du, stage = (_stored(path, key) for key in ("K", "du", "stage"))
+    cases, length, n = int(np.prod(stage.shape[:-1])), stage.shape[-1], K.shape[-1]
+    roomy = np.full((cases, length + 3, n, n), 7.0)
+    roomy[:, :length] = K.reshape(cases, length, n, n)
+    view = roomy[:, :length]
+    assert not view.flags.c_contiguous
+    controlled = np.array([[True] * n, [False, True] + [False] * (n - 2)])
+    args = (du.reshape(cases, length, n), np.maximum(stage.reshape(cases, length), -1) % 2, controlled)
+    from_view = state_kernel.stored_state_indicators(view, *args)
+    from_copy = state_kernel.stored_state_indicators(np.ascontiguousarray(view), *args)
+    for a, b in zip(from_view, from_copy):
+        np.testing.assert_array_equal(a, b)
+    assert (roomy[:, length:] == 7.0).all()
+
+
+@pytest.mark.parametrize("n", [1, 3, 5])
+def test_beyond_two_dofs_the_kernel_agrees_with_lapack(n, monkeypatch):
+    """Random K (some states not finite, some padding): det K and det K_SS by LU, the least
+    eigenvalue of K_sym, the discriminant and d2W against numpy's LAPACK, to 1e-12 of the
+    matrix's scale (det: of its n-th power); machine code and plain Python bit for bit."""
+    rng = np.random.default_rng(n)
+    K = rng.normal(size=(6, 5, n, n))
+    du = rng.normal(size=(6, 5, n))
+    stage = rng.integers(0, 2, size=(6, 5))
+    stage[0, 3:] = -1
+    K[1, 2, 0, 0] = np.nan
+    controlled = np.zeros((2, n), dtype=bool)
+    controlled[0] = True
+    controlled[1, ::2] = True
+    _on_route(monkeypatch, "machine code")
+    symmetric, skew, values = state_kernel.stored_state_indicators(K, du, stage, controlled)
+    _on_route(monkeypatch, "plain")
+    plain = state_kernel.stored_state_indicators(K, du, stage, controlled)
+    np.testing.assert_array_equal(plain[2], values)
+    got = dict(zip(state_kernel.INDICATOR_NAMES, values))
+    np.testing.assert_array_equal(symmetric, symmetric_part(K))
+    np.testing.assert_array_equal(skew, skew_part(K))
+    mixed = np.full(stage.shape, np.nan)
+    for k in range(2):
+        mixed[stage == k] = mixed_control_determinant(K[stage == k], controlled[k])
+    scale = np.nanmax(np.abs(K))
+    expected = {"det_K": (det_K(K), scale**n), "hill": (hill_eigenvalue(K), scale),
+                "flutter": (flutter_discriminant(K), scale ** max(n * (n - 1), 1)),
+                "d2W": (_normalised_work(K, du), 1.0), "mixed_control": (mixed, scale**n)}
+    for name, (value, size) in expected.items():
+        assert np.array_equal(np.isnan(got[name]), np.isnan(value)), name
+        np.testing.assert_allclose(got[name], value, rtol=0, atol=1e-12 * size, equal_nan=True, err_msg=name)
 
 
 def test_mixed_control_follows_each_state_s_stage():
     """The diamond's first stage controls both forces (det K_SS = det K) and the second
-    holds F2 and drives D1 (det K_SS = K_22): the blocks give each stored state its
-    own stage's determinant."""
+    holds F2 and drives D1 (det K_SS = K_22): each stored state gets its own stage's."""
     path = follow(*DIAMOND)
     K, u, du, stage = (_stored(path, key) for key in ("K", "u", "du", "stage"))
-    _, _, got = state_indicators(path, K, u, du, stage)
+    got = state_indicators(path, K, u, du, stage)
     first, second = stage == 0, stage == 1
     assert first.any() and second.any()
     np.testing.assert_array_equal(got["mixed_control"][first], det_K(K)[first])
     np.testing.assert_array_equal(got["mixed_control"][second], K[..., 1, 1][second])
+    assert np.isnan(got["mixed_control"][stage < 0]).all()
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_the_dataset_is_the_same_whatever_the_blocks_and_threads(path, threads, monkeypatch):
+    """The whole Dataset (indicators included) with blocks of one case, on one or two
+    threads, and with the default blocks on one thread."""
+    from ncstab.paths import dataset_indicators
+    from ncstab.paths.threads import thread_limit, using_threads
+
+    if threads > thread_limit():
+        pytest.skip("numba runs one thread here (NUMBA_NUM_THREADS or one core)")
+    with using_threads(1):
+        default = path.to_dataset()
+    monkeypatch.setattr(dataset_indicators, "BLOCK_STATES", 1)  # at least one case per block
+    with using_threads(threads):
+        small = path.to_dataset()
+    for dataset in (default, small):
+        dataset.attrs.pop("created", None)
+    xr.testing.assert_identical(default, small)

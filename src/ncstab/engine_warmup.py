@@ -15,7 +15,10 @@ item through the public API with ``backend = "compiled"``:
   model kernel);
 * ``general-rate``: the model kernel of a ring of four grains with Cundall-Strack
   (a rate law), without the loop: it goes with the diamond's items, so that the
-  two processes take about as long.
+  two processes take about as long;
+* ``dataset``: the indicators of the stored states
+  (:func:`ncstab.operators.state_kernel.machine_code`, a few seconds), with the
+  diamond's items too.
 
 Run as a module (``python -m ncstab.engine_warmup ITEM ...``) it compiles the items
 named, in this process.
@@ -36,8 +39,8 @@ __all__ = ["ENGINE_ITEMS", "GENERAL_ITEMS", "compile_items", "compile_loops", "g
 #: The general models' items: their loop (a column's path), a ring's kernel under a rate law.
 GENERAL_ITEMS = ("general-total", "general-rate")
 #: What ``ncstab cache compile`` compiles: the diamond's loop (with a law of each form,
-#: whose kernels are compiled too) and the general models' items.
-ENGINE_ITEMS = ("mcnamara", "cundall_strack", *GENERAL_ITEMS)
+#: whose kernels are compiled too), the general models' items and the Dataset's indicators.
+ENGINE_ITEMS = ("mcnamara", "cundall_strack", *GENERAL_ITEMS, "dataset")
 #: Seconds one process may take (a loop compiles in 30-90 s on 2 cores, more under load).
 PROCESS_TIMEOUT = 900
 
@@ -64,6 +67,11 @@ def compile_items(items: Sequence[str]) -> None:
 
             model = resolve_model(SystemSpec("ring", grains=4, secondary_contacts="ignore"), ["cundall_strack"])
             case_batch(model.laws[0], model, {"gamma": np.array([1.0])}, 1)._kernel.callback  # noqa: B018 - compiles it
+            continue
+        elif item == "dataset":
+            from ncstab.operators.state_kernel import machine_code
+
+            machine_code()
             continue
         else:
             programme = [{"hold": {"F2": 0.0}, "drive": {"D1": 0.01}}]

@@ -26,34 +26,13 @@ import numpy as np
 
 from ncstab.generated_modules import compiled_module
 from ncstab.jit import njit
+from ncstab.operators.state_kernel import discriminant_2, eigenvalue_discriminant
 
 __all__ = [
     "characteristic_coefficients", "characteristic_rows", "damped_onset", "damped_onsets", "eigenvalue_discriminant",
     "eigenvalue_discriminants", "frequency_discriminant", "frequency_discriminants", "interpolated_coefficients",
     "interpolated_rows", "regular_determinant",
 ]
-
-
-@njit
-def eigenvalue_discriminant(matrix):
-    """prod_{i<j} (lambda_i - lambda_j)^2 over the eigenvalues of a real n x n matrix (real,
-    negative where it has one complex pair: the discriminant of its characteristic
-    polynomial; :func:`ncstab.operators.flutter_discriminant`, whose vectorized closed
-    form for n = 2, (K11 - K22)^2 + 4 K12 K21, is the expression here).  NaN where an
-    entry is not finite."""
-    n = matrix.shape[0]
-    for i in range(n):
-        for j in range(n):
-            if not np.isfinite(matrix[i, j]):
-                return np.nan
-    if n == 2:
-        return (matrix[0, 0] - matrix[1, 1]) ** 2 + 4 * matrix[0, 1] * matrix[1, 0]
-    eigenvalues = np.linalg.eigvals(matrix.astype(np.complex128))
-    product = 1.0 + 0.0j
-    for i in range(n):
-        for j in range(i + 1, n):
-            product = product * (eigenvalues[i] - eigenvalues[j]) ** 2
-    return product.real
 
 
 @njit
@@ -258,8 +237,8 @@ def _onset_batch(masses, dampings, stiffnesses, out):
 def _compiled() -> Any:
     """This module's per-case functions compiled by numba (a generated module in the cache folder)."""
     return compiled_module(
-        __name__, regular_determinant, eigenvalue_discriminant, frequency_discriminant, interpolated_coefficients,
-        characteristic_coefficients, damped_onset, _eigenvalue_batch, _frequency_batch, _characteristic_batch,
+        __name__, regular_determinant, discriminant_2, eigenvalue_discriminant, frequency_discriminant,
+        interpolated_coefficients, characteristic_coefficients, damped_onset, _eigenvalue_batch, _frequency_batch, _characteristic_batch,
         _interpolated_batch, _onset_batch,
     )
 

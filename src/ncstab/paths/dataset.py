@@ -86,11 +86,10 @@ def path_dataset(result: "PathResult", directions: int | None = None, spectrum: 
         array = _over_laws(arrays)
         return array.reshape(shape + array.shape[2:])
 
-    # The indicators at every stored state, in blocks of cases on the study's threads
-    # (dataset_indicators), with K and u as contiguous copies: one law's arrays are
-    # views of the recorder, whose rows hold room for more states than were stored.
-    stage = stacked("stage")
-    K, u, indicators = state_indicators(result, stacked("K"), stacked("u"), stacked("du"), stage)
+    # The indicators at every stored state (dataset_indicators); K and u stay views of the
+    # recorder's rows, like every stored field.
+    stage, K, u = stacked("stage"), stacked("K"), stacked("u")
+    indicators = state_indicators(result, K, u, stacked("du"), stage)
     members = _members(result)
 
     step_dims = [*sweep_dims, "step"]

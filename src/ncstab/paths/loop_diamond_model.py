@@ -19,6 +19,7 @@ import math
 import numpy as np
 
 from ncstab.jit import hot, njit
+from ncstab.operators.state_kernel import determinant_2, discriminant_2, hill_2
 from ncstab.paths.compiled import ACTIVATE_SLOT, ALPHA_SLOT, KAPPA_SLOT, STATE_SLOT
 from ncstab.paths.loop_signs import signed_gap, significant, target_indicator
 
@@ -223,16 +224,11 @@ def indicators(kind, ev, aux, y, fc, ctl, geo, lam_end, target_sign, turn_end, s
     if not (np.isfinite(scale) and scale > 0):
         scale = 1.0
     square = scale * scale
-    out[0] = significant(k00 * k11 - k01 * k10, square)
-    s00 = 0.5 * (k00 + k00)
-    s01 = 0.5 * (k01 + k10)
-    s11 = 0.5 * (k11 + k11)
-    mean = 0.5 * (s00 + s11)
-    radius = math.hypot(0.5 * (s00 - s11), s01)
-    out[1] = significant(mean - radius, scale)
-    out[2] = significant(m00 * m11 - m01 * m10, square)
-    difference = k00 - k11
-    out[3] = significant(difference * difference + 4 * k01 * k10, square)
+    # operators.state_kernel: the Dataset's indicators, the same functions
+    out[0] = significant(determinant_2(k00, k01, k10, k11), square)
+    out[1] = significant(hill_2(k00, k01, k10, k11), scale)
+    out[2] = significant(determinant_2(m00, m01, m10, m11), square)
+    out[3] = significant(discriminant_2(k00, k01, k10, k11), square)
     out[4] = signed_gap(ev[12], secondary, 1)
     out[5] = signed_gap(ev[13], secondary, 2)
     out[6] = aux[4]

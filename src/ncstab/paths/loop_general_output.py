@@ -16,7 +16,8 @@ from __future__ import annotations
 import numpy as np
 
 from ncstab.jit import hot, njit
-from ncstab.operators.onset_cases import damped_onset, eigenvalue_discriminant, frequency_discriminant
+from ncstab.operators.onset_cases import damped_onset, frequency_discriminant
+from ncstab.operators.state_kernel import determinant, eigenvalue_discriminant, hill
 from ncstab.paths.loop_general import (
     G_BIFURCATION, G_BLOCKING, G_COLUMNS, G_CONTROL, G_CYCLE, G_DAMPING, G_DIVERGENCE, G_DOMAIN, G_EVSIZE,
     G_FORCES, G_GAPCOL, G_GAPS, G_INTERACTIONS, G_LIMIT, G_MASS, G_N, G_NGAPS, G_NINT, G_NOPEN, G_NORMALCOL,
@@ -117,8 +118,8 @@ def stiffness_indicators(ev, fc, ctl, lam, geo, out):
         scale = 1.0
     square = scale * scale
     if finite:
-        out[0] = significant(np.linalg.det(stiffness), square)
-        out[1] = significant(np.linalg.eigvalsh(0.5 * (stiffness + stiffness.T))[0], scale)
+        out[0] = significant(determinant(stiffness), square)  # operators.state_kernel, as the Dataset's
+        out[1] = significant(hill(stiffness), scale)
     else:
         out[0] = out[1] = np.nan
     if geo[G_MASS] >= 0:  # M s^2 + C s + K (dynamics.flutter_onset_indicator)
@@ -129,7 +130,7 @@ def stiffness_indicators(ev, fc, ctl, lam, geo, out):
     for i in range(n):
         for j in range(n):
             control_finite = control_finite and np.isfinite(matrix[i, j])
-    out[2] = significant(np.linalg.det(np.ascontiguousarray(matrix)), square) if control_finite else np.nan
+    out[2] = significant(determinant(matrix), square) if control_finite else np.nan
 
 
 @njit
