@@ -16,7 +16,7 @@ pytest.importorskip("numba")
 
 from ncstab.cli import main
 from ncstab.paths import PathOptions, SystemSpec, compiled_stages, follow
-from ncstab.paths.threads import check_thread_count, thread_count, thread_limit, using_threads
+from ncstab.paths.threads import check_thread_count, side_by_side, thread_count, thread_limit, using_threads
 
 IGNORE = SystemSpec(secondary_contacts="ignore")
 PRELOAD = [
@@ -58,35 +58,57 @@ def test_using_threads_restores_the_count():
 
 @pytest.mark.skipif(thread_limit() < 2, reason="numba runs one thread here (NUMBA_NUM_THREADS or one core)")
 def test_two_threads_run_the_loop_side_by_side_and_one_thread_runs_it_inline(monkeypatch):
-    """The count reaches the pool: two threads submit two shares, blocks of SHARE_BLOCK
-    consecutive cases dealt in turn; one thread none, nor fewer cases than one block."""
-    pools = []
+    """The count reaches the threads: two threads run two shares side by side, blocks of
+    SHARE_BLOCK consecutive cases dealt in turn; one thread none, nor fewer cases than one block."""
+    calls = []
 
-    class Recording(compiled_stages.ThreadPoolExecutor):
-        def __init__(self, workers, **kwargs):
-            super().__init__(workers, **kwargs)
-            self.shares = []
-            pools.append((workers, self.shares))
+    def recording(tasks, name):
+        calls.append([task.args[0].copy() for task in tasks])
+        side_by_side(tasks, name)
 
-        def submit(self, function, cases, *arguments):
-            self.shares.append(cases.copy())
-            return super().submit(function, cases, *arguments)
-
-    monkeypatch.setattr(compiled_stages, "ThreadPoolExecutor", Recording)
+    monkeypatch.setattr(compiled_stages, "side_by_side", recording)
     grid = {"gamma": np.linspace(0.5, 1.5, 5), "alpha0": np.pi / 4}
     programme = [{"hold": {"F2": 0.0}, "drive": {"D1": 0.1}}]
     with using_threads(1):
         follow(IGNORE, ["cundall_strack"], programme, grid, PathOptions())
     with using_threads(2):  # 5 cases, fewer than a block of the default SHARE_BLOCK = 64: one share
         follow(IGNORE, ["cundall_strack"], programme, grid, PathOptions())
-    assert compiled_stages.SHARE_BLOCK == 64 and pools == []
+    assert compiled_stages.SHARE_BLOCK == 64 and calls == []
     monkeypatch.setattr(compiled_stages, "SHARE_BLOCK", 2)
     with using_threads(2):
         follow(IGNORE, ["cundall_strack"], programme, grid, PathOptions())
-    workers, shares = pools[0]
-    assert workers == 2
+    shares = calls[0]
+    assert len(shares) == 2
     np.testing.assert_array_equal(shares[0], [0, 1, 4])
     np.testing.assert_array_equal(shares[1], [2, 3])
+
+
+def test_side_by_side_runs_the_first_task_here_and_the_others_on_ncstab_s_threads():
+    """The first task in the calling thread, the others on ncstab's threads (named for what
+    they do), started once: a second call runs on the same threads; an error reaches the
+    caller after every task is done."""
+    import threading
+
+    seen = []
+
+    def task():
+        seen.append(threading.current_thread())
+
+    side_by_side([task, task], "probe")
+    first = list(seen)
+    assert first[0] is threading.current_thread()
+    assert first[1] is not threading.current_thread() and first[1].name == "ncstab-probe"
+    seen.clear()
+    side_by_side([task, task], "probe")
+    assert seen[1] is first[1]
+    done = []
+
+    def fails():
+        raise RuntimeError("share failed")
+
+    with pytest.raises(RuntimeError, match="share failed"):
+        side_by_side([fails, lambda: done.append(1)], "probe")
+    assert done == [1]
 
 
 @pytest.mark.parametrize("count", [0, -2, 1.5, True])
@@ -115,8 +137,8 @@ def test_ncstab_run_with_a_bad_thread_count_exits_2_naming_the_option(tmp_path, 
 @pytest.mark.skipif(thread_limit() < 2, reason="numba runs one thread here (NUMBA_NUM_THREADS or one core)")
 def test_in_shares_runs_every_share_once_inline_on_one_thread_and_beside_it_on_two():
     """in_shares (the recorder's growth, the Dataset's indicator blocks): every
-    non-empty share once, in the calling thread under one thread, on other threads
-    under two; empty shares are skipped."""
+    non-empty share once, in the calling thread under one thread; under two, in the
+    calling thread and on one of ncstab's; empty shares are skipped."""
     import threading
 
     from ncstab.paths.threads import in_shares
@@ -134,7 +156,7 @@ def test_in_shares_runs_every_share_once_inline_on_one_thread_and_beside_it_on_t
         if threads == 1:
             assert idents == {threading.get_ident()}
         else:
-            assert threading.get_ident() not in idents
+            assert threading.get_ident() in idents and len(idents) == 2
 
 
 def test_the_recorder_grows_the_same_bytes_on_one_thread_and_on_two():

@@ -12,6 +12,7 @@ count.  The workers of a local dask cluster run one thread each
 
 from __future__ import annotations
 
+import os
 import threading
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -19,7 +20,7 @@ from contextlib import contextmanager
 from itertools import pairwise
 from typing import Any
 
-__all__ = ["check_thread_count", "in_shares", "thread_count", "thread_limit", "using_threads"]
+__all__ = ["check_thread_count", "in_shares", "side_by_side", "thread_count", "thread_limit", "using_threads"]
 
 #: The count chosen by :func:`using_threads`, per calling thread.
 _CHOSEN = threading.local()
@@ -94,7 +95,7 @@ def in_shares(work: Callable[[slice], Any], bounds: Sequence[int], name: str) ->
     bounds
         Increasing share boundaries, first to last (``[0, ..., size]``).
     name
-        The threads' name prefix (``ncstab-<name>``), for profilers and debuggers.
+        What the threads do, for profilers and debuggers (:func:`side_by_side`).
     """
     shares = [slice(int(a), int(b)) for a, b in pairwise(bounds) if b > a]
     threads = min(thread_count(), len(shares))
@@ -102,5 +103,54 @@ def in_shares(work: Callable[[slice], Any], bounds: Sequence[int], name: str) ->
         for share in shares:
             work(share)
         return
-    with ThreadPoolExecutor(threads, thread_name_prefix=f"ncstab-{name}") as pool:
-        list(pool.map(work, shares))
+    dealt = [shares[t::threads] for t in range(threads)]
+    side_by_side([lambda mine=mine: [work(share) for share in mine] for mine in dealt], name)
+
+
+#: ncstab's threads beside the calling one (:func:`side_by_side`), started once a process.
+_POOL: ThreadPoolExecutor | None = None
+_POOL_LOCK = threading.Lock()
+
+
+def _forget_pool() -> None:
+    """In a forked child: the parent's threads are not there, so start new ones when asked."""
+    global _POOL
+    _POOL = None
+
+
+os.register_at_fork(after_in_child=_forget_pool)
+
+
+def _pool() -> ThreadPoolExecutor:
+    global _POOL
+    with _POOL_LOCK:
+        if _POOL is None:
+            _POOL = ThreadPoolExecutor(max(1, thread_limit() - 1), thread_name_prefix="ncstab")
+        return _POOL
+
+
+def _named(task: Callable[[], Any], name: str) -> Any:
+    threading.current_thread().name = f"ncstab-{name}"
+    return task()
+
+
+def side_by_side(tasks: Sequence[Callable[[], Any]], name: str) -> None:
+    """Run ``tasks`` at once: the first in the calling thread, the others on ncstab's
+    threads (started once a process, not once a call: starting them cost 4 ms of a
+    0.12 s study of 4,096 cases).  Returns when all are done; raises the first error.
+    A task must not itself call this function (it would wait on the threads it holds).
+
+    Parameters
+    ----------
+    tasks
+        Functions of no argument, writing apart.
+    name
+        What the threads do: they are named ``ncstab-<name>`` while they do it.
+    """
+    futures = [_pool().submit(_named, task, name) for task in tasks[1:]]
+    try:
+        if tasks:
+            tasks[0]()
+    finally:
+        for future in futures:
+            future.result()
