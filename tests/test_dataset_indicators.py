@@ -99,7 +99,7 @@ def test_two_dofs_give_numpy_s_operators_on_the_whole_sweep_bit_for_bit(path, ro
 
 def test_the_recorder_s_views_are_read_where_they_are(path):
     """A view with room between the cases (the recorder's padded rows) gives what its
-    contiguous copy gives, and the kernel leaves both untouched."""
+    contiguous copy gives, read only or not, and the kernel leaves both untouched."""
     K, du, stage = (_stored(path, key) for key in ("K", "du", "stage"))
     cases, length, n = int(np.prod(stage.shape[:-1])), stage.shape[-1], K.shape[-1]
     roomy = np.full((cases, length + 3, n, n), 7.0)
@@ -113,6 +113,11 @@ def test_the_recorder_s_views_are_read_where_they_are(path):
     for a, b in zip(from_view, from_copy):
         np.testing.assert_array_equal(a, b)
     assert (roomy[:, length:] == 7.0).all()
+    roomy.setflags(write=False)  # an archive's arrays: read only, the same machine code
+    frozen = roomy[:, :length]
+    assert not frozen.flags.writeable
+    for a, b in zip(state_kernel.stored_state_indicators(frozen, *args, plain=False), from_copy):
+        np.testing.assert_array_equal(a, b)
 
 
 @pytest.mark.parametrize("n", [1, 3, 5])

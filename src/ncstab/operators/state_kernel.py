@@ -223,13 +223,20 @@ def _states_batch(stiffness, du, stage, controlled, symmetric, skew, out):
             for v in range(len(values)):
                 out[v, b, t] = values[v]
 
-#: The signature :func:`stored_state_indicators` compiles: any layout of the stored states
-#: (a view of the recorder's padded rows or a contiguous stack) and of the outputs (a
-#: block's share of the Dataset's arrays), one compilation.
-BATCH_SIGNATURE = (
-    "void(float64[:, :, :, :], float64[:, :, :], int64[:, :], boolean[:, :], "
-    "float64[:, :, :, :], float64[:, :, :, :], float64[:, :, :])"
-)
+def batch_signature() -> Any:
+    """The signature :func:`stored_state_indicators` compiles: inputs of any layout, read
+    only or not (a view of the recorder's padded rows, a contiguous stack, an archive's
+    arrays), and outputs of any layout (a block's share of the Dataset's arrays): one
+    compilation."""
+    from numba import types
+
+    def array(dtype: Any, ndim: int, readonly: bool = False) -> Any:
+        return types.Array(dtype, ndim, "A", readonly=readonly)
+
+    return types.void(
+        array(types.float64, 4, True), array(types.float64, 3, True), array(types.int64, 2, True),
+        array(types.boolean, 2, True), array(types.float64, 4), array(types.float64, 4), array(types.float64, 3),
+    )
 
 
 @functools.cache
@@ -251,13 +258,13 @@ _COMPILING = threading.Lock()
 @functools.cache
 def _compiled_batch() -> Any:
     batch = _module()._states_batch
-    batch.compile(BATCH_SIGNATURE)
+    batch.compile(batch_signature())
     batch.disable_compile()
     return batch
 
 
 def machine_code() -> Any:
-    """The compiled batch for :data:`BATCH_SIGNATURE` (from numba's cache, or compiled now;
+    """The compiled batch for :func:`batch_signature` (from numba's cache, or compiled now;
     one thread at a time), taking arrays of any layout without compiling again."""
     with _COMPILING:
         return _compiled_batch()
