@@ -1,10 +1,10 @@
 """The Dataset's indicators: the stage loop's per-state functions over the stored states.
 
-``ncstab.operators.state_kernel`` holds the indicators of one state (det K, the
+``ncstab.operators.one_state`` holds the indicators of one state (det K, the
 least eigenvalue of K_sym, the normalised second-order work, the discriminant of
 K, det K_SS of the stage's mixed control); the compiled stage loop calls them for
 its events and the Dataset runs them over every stored state
-(``stored_state_indicators``).  Checked here:
+(``ncstab.operators.stored_states.stored_state_indicators``).  Checked here:
 
 * for two dofs (the diamond under two stages and two laws, paths of different
   lengths, NaN padding; Ziegler's pendulum with masses swept, whose ``flutter``
@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from ncstab.operators import state_kernel
+from ncstab.operators import one_state, stored_states
 from ncstab.operators.indicators import (
     det_K, flutter_discriminant, hill_eigenvalue, mixed_control_determinant, skew_part, symmetric_part,
 )
@@ -108,15 +108,15 @@ def test_the_recorder_s_views_are_read_where_they_are(path):
     assert not view.flags.c_contiguous
     controlled = np.array([[True] * n, [False, True] + [False] * (n - 2)])
     args = (du.reshape(cases, length, n), np.maximum(stage.reshape(cases, length), -1) % 2, controlled)
-    from_view = state_kernel.stored_state_indicators(view, *args)
-    from_copy = state_kernel.stored_state_indicators(np.ascontiguousarray(view), *args)
+    from_view = stored_states.stored_state_indicators(view, *args)
+    from_copy = stored_states.stored_state_indicators(np.ascontiguousarray(view), *args)
     for a, b in zip(from_view, from_copy):
         np.testing.assert_array_equal(a, b)
     assert (roomy[:, length:] == 7.0).all()
     roomy.setflags(write=False)  # an archive's arrays: read only, the same machine code
     frozen = roomy[:, :length]
     assert not frozen.flags.writeable
-    for a, b in zip(state_kernel.stored_state_indicators(frozen, *args, plain=False), from_copy):
+    for a, b in zip(stored_states.stored_state_indicators(frozen, *args, plain=False), from_copy):
         np.testing.assert_array_equal(a, b)
 
 
@@ -135,11 +135,11 @@ def test_beyond_two_dofs_the_kernel_agrees_with_lapack(n, monkeypatch):
     controlled[0] = True
     controlled[1, ::2] = True
     _on_route(monkeypatch, "machine code")
-    symmetric, skew, values = state_kernel.stored_state_indicators(K, du, stage, controlled)
+    symmetric, skew, values = stored_states.stored_state_indicators(K, du, stage, controlled)
     _on_route(monkeypatch, "plain")
-    plain = state_kernel.stored_state_indicators(K, du, stage, controlled)
+    plain = stored_states.stored_state_indicators(K, du, stage, controlled)
     np.testing.assert_array_equal(plain[2], values)
-    got = dict(zip(state_kernel.INDICATOR_NAMES, values))
+    got = dict(zip(one_state.INDICATOR_NAMES, values))
     np.testing.assert_array_equal(symmetric, symmetric_part(K))
     np.testing.assert_array_equal(skew, skew_part(K))
     mixed = np.full(stage.shape, np.nan)
@@ -184,3 +184,19 @@ def test_the_dataset_is_the_same_whatever_the_blocks_and_threads(path, threads, 
     for dataset in (default, small):
         dataset.attrs.pop("created", None)
     xr.testing.assert_identical(default, small)
+
+
+def test_the_growth_rate_of_two_dofs_is_the_same_plain_and_compiled(monkeypatch):
+    """max Re s of M s^2 + K from P = M^-1 K (tests/test_dynamics.py checks it against the
+    companion matrix's eigenvalues in every regime): the same bits as plain Python and as
+    machine code, NaN where P is not finite."""
+    rng = np.random.default_rng(7)
+    product = rng.normal(size=(200, 2, 2)) * rng.choice([1e-3, 1.0, 1e3], size=(200, 1, 1))
+    product[3, 0, 1], product[4, 1, 1] = np.nan, np.inf
+    _on_route(monkeypatch, "machine code")
+    compiled = stored_states.undamped_growths(product)
+    _on_route(monkeypatch, "plain")
+    plain = stored_states.undamped_growths(product)
+    np.testing.assert_array_equal(plain, compiled)
+    assert np.isnan(compiled[[3, 4]]).all() and np.isfinite(np.delete(compiled, [3, 4])).all()
+    assert (compiled[np.isfinite(compiled)] >= 0).all()

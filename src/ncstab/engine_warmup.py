@@ -16,9 +16,9 @@ item through the public API with ``backend = "compiled"``:
 * ``general-rate``: the model kernel of a ring of four grains with Cundall-Strack
   (a rate law), without the loop: it goes with the diamond's items, so that the
   two processes take about as long;
-* ``dataset``: the indicators of the stored states
-  (:func:`ncstab.operators.state_kernel.machine_code`, a few seconds), with the
-  diamond's items too.
+* ``dataset``: the indicators of the stored states and the growth rate of two-dof
+  dynamics (:func:`ncstab.operators.stored_states.compile_batches`, a few seconds),
+  with the diamond's items too.
 
 Run as a module (``python -m ncstab.engine_warmup ITEM ...``) it compiles the items
 named, in this process.
@@ -69,9 +69,9 @@ def compile_items(items: Sequence[str]) -> None:
             case_batch(model.laws[0], model, {"gamma": np.array([1.0])}, 1)._kernel.callback  # noqa: B018 - compiles it
             continue
         elif item == "dataset":
-            from ncstab.operators.state_kernel import machine_code
+            from ncstab.operators.stored_states import compile_batches
 
-            machine_code()
+            compile_batches()
             continue
         else:
             programme = [{"hold": {"F2": 0.0}, "drive": {"D1": 0.01}}]

@@ -127,33 +127,12 @@ def _undamped_growth(mass: np.ndarray, stiffness: np.ndarray) -> np.ndarray:
 
 
 def _undamped_growth_2(product: np.ndarray) -> np.ndarray:
-    """max |Re sqrt(mu)| over the two eigenvalues mu of -P, P = M^-1 K ``(..., 2, 2)``, in real arithmetic.
+    """max |Re sqrt(mu)| over the two eigenvalues mu of -P, P = M^-1 K ``(..., 2, 2)``, in real
+    arithmetic: :func:`ncstab.operators.one_state.undamped_growth_2` of each case, the
+    function the Dataset's compiled pass calls at every stored state."""
+    from ncstab.operators.stored_states import undamped_growths
 
-    With h = tr P / 2, d = det P and the discriminant h^2 - d, the eigenvalues of
-    P are h +- r, r = sqrt(h^2 - d), where it is >= 0: mu = -(h -+ r) is real and
-    the growth is sqrt(max(r - h, 0)), r - h taken as -d / (r + h) where h > 0
-    (no cancellation near d = 0).  Where it is < 0, mu = -h -+ i q with
-    q = sqrt(d - h^2) and |mu| = sqrt(d): Re sqrt(mu) = sqrt((sqrt(d) - h) / 2),
-    taken as q / (2 sqrt((sqrt(d) + h) / 2)) where h > 0 (the usual stable form of
-    the complex square root).  The roots s are those of the companion matrix.
-    """
-    p00, p01, p10, p11 = product[..., 0, 0], product[..., 0, 1], product[..., 1, 0], product[..., 1, 1]
-    half_trace = 0.5 * (p00 + p11)
-    determinant = p00 * p11 - p01 * p10
-    discriminant = half_trace * half_trace - determinant
-    with np.errstate(invalid="ignore", divide="ignore"):
-        r = np.sqrt(np.maximum(discriminant, 0.0))
-        real_mu = np.where(half_trace > 0, -determinant / (r + half_trace), r - half_trace)
-        real_growth = np.sqrt(np.maximum(real_mu, 0.0))
-        modulus = np.sqrt(np.maximum(determinant, 0.0))
-        q = np.sqrt(np.maximum(-discriminant, 0.0))
-        complex_growth = np.where(
-            half_trace > 0,
-            q / (2 * np.sqrt(0.5 * (modulus + half_trace))),
-            np.sqrt(0.5 * (modulus - half_trace)),
-        )
-    growth = np.where(discriminant >= 0, real_growth, complex_growth)
-    return np.where(np.isnan(discriminant), np.nan, growth)
+    return undamped_growths(product)
 
 
 def divergence_indicator(

@@ -26,7 +26,7 @@ import numpy as np
 
 from ncstab.generated_modules import compiled_module
 from ncstab.jit import njit
-from ncstab.operators.state_kernel import discriminant_2, eigenvalue_discriminant
+from ncstab.operators.one_state import discriminant_2, eigenvalue_discriminant
 
 __all__ = [
     "characteristic_coefficients", "characteristic_rows", "damped_onset", "damped_onsets", "eigenvalue_discriminant",

@@ -5,7 +5,7 @@ skew parts, det K, the least eigenvalue of K_sym (Hill's condition), the
 normalised second-order work, the ``flutter`` variable and the determinant of
 the mixed control.  They come from K, du and the stage by the compiled per-state
 functions the stage loop uses for its events
-(:func:`ncstab.operators.state_kernel.stored_state_indicators`, reading the
+(:func:`ncstab.operators.stored_states.stored_state_indicators`, reading the
 stored states where the recorder keeps them: no copies), and for a system with
 inertia the ``flutter`` variable from M(u) s^2 + C s + K
 (:mod:`ncstab.paths.dataset_dynamics`).
@@ -35,6 +35,19 @@ __all__ = ["BLOCK_STATES", "state_indicators"]
 BLOCK_STATES = 1 << 15
 
 
+def _identity(matrix, n: int, zero: bool = False) -> bool:
+    """Whether a system's matrix (rows of numbers or expressions) is the n x n identity
+    (``zero``: None, or every entry zero), to the last bit."""
+    if matrix is None:
+        return zero
+    try:
+        entries = [[float(entry) for entry in row] for row in matrix]
+    except (TypeError, ValueError):  # an expression of the dofs or parameters
+        return False
+    target = np.zeros((n, n)) if zero else np.eye(n)
+    return np.shape(entries) == (n, n) and bool((np.array(entries) == target).all())
+
+
 def state_indicators(
     result: "PathResult", K: np.ndarray, u: np.ndarray, du: np.ndarray, stage: np.ndarray
 ) -> dict[str, np.ndarray]:
@@ -56,7 +69,8 @@ def state_indicators(
         ``flutter`` and ``mixed_control`` (shaped like ``stage``).
     """
     # (imported here: numba, with scipy, is not for commands that only read archives)
-    from ncstab.operators.state_kernel import INDICATOR_NAMES, runs_plain, stored_state_indicators
+    from ncstab.operators.one_state import INDICATOR_NAMES
+    from ncstab.operators.stored_states import runs_plain, stored_state_indicators
 
     lead, length, n = stage.shape[:-1], stage.shape[-1], u.shape[-1]
     cases = int(np.prod(lead, dtype=np.int64))
@@ -67,12 +81,15 @@ def state_indicators(
             "du": du.reshape(cases, length, n), "stage": stage.reshape(cases, length)}
     symmetric, skew = np.empty(rows["K"].shape), np.empty(rows["K"].shape)
     values = np.empty((len(INDICATOR_NAMES), cases, length))
-    inertia = result.model.definition.mass is not None
+    definition = result.model.definition
+    identity = n == 2 and _identity(definition.mass, n) and _identity(definition.damping, n, zero=True)
+    inertia = definition.mass is not None and not identity  # (M = I, C = 0: in the compiled pass)
     per_case = case_parameters(result, ()) if inertia else ()  # one value per (law, case)
     plain = runs_plain(cases * length)
 
     def block(share: slice) -> None:
         stored_state_indicators(rows["K"][share], rows["du"][share], rows["stage"][share], controlled,
+                                rows["u"][share] if identity else None,
                                 (symmetric[share], skew[share], values[:, share]), plain)
         if inertia:  # max Re s of M s^2 + C s + K
             parameters = tuple(np.repeat(p[share], length) for p in per_case)

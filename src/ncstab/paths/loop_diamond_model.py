@@ -19,7 +19,7 @@ import math
 import numpy as np
 
 from ncstab.jit import hot, njit
-from ncstab.operators.state_kernel import determinant_2, discriminant_2, hill_2
+from ncstab.operators.one_state import determinant_2, discriminant_2, hill_2
 from ncstab.paths.compiled import ACTIVATE_SLOT, ALPHA_SLOT, KAPPA_SLOT, STATE_SLOT
 from ncstab.paths.loop_signs import signed_gap, significant, target_indicator
 
@@ -224,7 +224,7 @@ def indicators(kind, ev, aux, y, fc, ctl, geo, lam_end, target_sign, turn_end, s
     if not (np.isfinite(scale) and scale > 0):
         scale = 1.0
     square = scale * scale
-    # operators.state_kernel: the Dataset's indicators, the same functions
+    # operators.one_state: the Dataset's indicators, the same functions
     out[0] = significant(determinant_2(k00, k01, k10, k11), square)
     out[1] = significant(hill_2(k00, k01, k10, k11), scale)
     out[2] = significant(determinant_2(m00, m01, m10, m11), square)

@@ -17,7 +17,7 @@ import numpy as np
 
 from ncstab.jit import hot, njit
 from ncstab.operators.onset_cases import damped_onset, frequency_discriminant
-from ncstab.operators.state_kernel import determinant, eigenvalue_discriminant, hill
+from ncstab.operators.one_state import determinant, eigenvalue_discriminant, hill
 from ncstab.paths.loop_general import (
     G_BIFURCATION, G_BLOCKING, G_COLUMNS, G_CONTROL, G_CYCLE, G_DAMPING, G_DIVERGENCE, G_DOMAIN, G_EVSIZE,
     G_FORCES, G_GAPCOL, G_GAPS, G_INTERACTIONS, G_LIMIT, G_MASS, G_N, G_NGAPS, G_NINT, G_NOPEN, G_NORMALCOL,
@@ -118,7 +118,7 @@ def stiffness_indicators(ev, fc, ctl, lam, geo, out):
         scale = 1.0
     square = scale * scale
     if finite:
-        out[0] = significant(determinant(stiffness), square)  # operators.state_kernel, as the Dataset's
+        out[0] = significant(determinant(stiffness), square)  # operators.one_state, as the Dataset's
         out[1] = significant(hill(stiffness), scale)
     else:
         out[0] = out[1] = np.nan

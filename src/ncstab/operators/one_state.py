@@ -6,11 +6,9 @@ least eigenvalue of K_sym for Hill's condition, the discriminant of K's
 characteristic polynomial for flutter without inertia, det K_SS for the
 controllability of a mixed control: :mod:`ncstab.paths.loop_diamond_model`,
 :mod:`ncstab.paths.loop_general_output`); the Dataset computes them at every
-stored state with :func:`stored_state_indicators`, which runs the same functions
-over the states, one after the other, in a generated module of the cache folder
-(:func:`ncstab.generated_modules.compiled_module`), or as plain Python while that
-module's machine code is not cached and the states are few
-(:func:`ncstab.paths.loop_route.evaluates_plain`).
+stored state by :mod:`ncstab.operators.stored_states`, which runs this module's
+batch loops (:func:`batch_of_states`, :func:`batch_of_growths`) over the states, one after the
+other, compiled in a generated module of the cache folder or as plain Python.
 
 For two dofs every indicator is a closed form, the operations of
 :mod:`ncstab.operators.indicators` in the same order (the same numbers, bit for
@@ -20,19 +18,16 @@ and the eigenvalues of K for the discriminant.
 
 from __future__ import annotations
 
-import functools
 import math
-import threading
-from typing import Any
 
 import numpy as np
 
 from ncstab.jit import hot, njit
 
 __all__ = [
-    "INDICATOR_NAMES", "controlled_determinant", "determinant", "determinant_2", "discriminant_2",
-    "eigenvalue_discriminant", "hill", "hill_2", "machine_code", "normalised_work", "normalised_work_2", "state_values",
-    "runs_plain", "state_values_2", "stored_state_indicators",
+    "INDICATOR_NAMES", "batch_of_growths", "batch_of_states", "controlled_determinant", "determinant", "determinant_2", "discriminant_2",
+    "eigenvalue_discriminant", "hill", "hill_2", "normalised_work", "normalised_work_2", "state_values",
+    "state_values_2", "undamped_growth_2",
 ]
 
 #: The scalar indicators of :func:`state_values`, in its order (the Dataset's variables).
@@ -59,6 +54,34 @@ def discriminant_2(k00, k01, k10, k11):
     complex pair of eigenvalues (flutter without inertia)."""
     difference = k00 - k11
     return difference * difference + 4 * k01 * k10
+
+
+@hot
+def undamped_growth_2(p00, p01, p10, p11):
+    """max Re s of M s^2 + K (C = 0) from P = M^-1 K (2 x 2): the largest |Re sqrt(mu)| over
+    the eigenvalues mu of -P, in real arithmetic (:func:`ncstab.operators.flutter_indicator`).
+
+    With h = tr P / 2, d = det P and the discriminant h^2 - d, the eigenvalues of P are
+    h +- r, r = sqrt(h^2 - d), where it is >= 0: mu = -(h -+ r) is real and the growth is
+    sqrt(max(r - h, 0)), r - h taken as -d / (r + h) where h > 0 (no cancellation near
+    d = 0).  Where it is < 0, mu = -h -+ i q with q = sqrt(d - h^2) and |mu| = sqrt(d):
+    Re sqrt(mu) = sqrt((sqrt(d) - h) / 2), taken as q / (2 sqrt((sqrt(d) + h) / 2)) where
+    h > 0 (the stable form of the complex square root).  NaN where P is not finite.
+    """
+    half_trace = 0.5 * (p00 + p11)
+    determinant = p00 * p11 - p01 * p10
+    discriminant = half_trace * half_trace - determinant
+    if np.isnan(discriminant):
+        return np.nan
+    if discriminant >= 0:
+        r = math.sqrt(discriminant)
+        real_mu = -determinant / (r + half_trace) if half_trace > 0 else r - half_trace
+        return math.sqrt(0.0 if real_mu < 0.0 else real_mu)
+    modulus = math.sqrt(determinant if determinant > 0.0 else 0.0)
+    q = math.sqrt(-discriminant)
+    if half_trace > 0:
+        return q / (2 * math.sqrt(0.5 * (modulus + half_trace)))
+    return math.sqrt(0.5 * (modulus - half_trace))
 
 
 @njit
@@ -202,8 +225,11 @@ def state_values(matrix, du, controlled):
     return det_k, least, normalised_work(matrix, du), eigenvalue_discriminant(matrix), mixed
 
 
-def _states_batch(stiffness, du, stage, controlled, symmetric, skew, out):
-    # every stored state of (cases, steps): K_sym, K_skew and state_values; stage < 0: padding
+def batch_of_states(stiffness, du, u, stage, controlled, identity_mass, symmetric, skew, out):
+    """K_sym, K_skew and :data:`INDICATOR_NAMES` of every stored state ``(cases, steps)``
+    (run by :func:`ncstab.operators.stored_states.stored_state_indicators`)."""
+    # every stored state of (cases, steps): K_sym, K_skew and state_values; stage < 0: padding;
+    # identity_mass (two dofs, M = I, C = 0): flutter is max Re s, NaN where K or u is not finite
     n = stiffness.shape[2]
     none = controlled[0, :0]
     for b in range(stiffness.shape[0]):
@@ -214,108 +240,22 @@ def _states_batch(stiffness, du, stage, controlled, symmetric, skew, out):
                     skew[b, t, i, j] = 0.5 * (stiffness[b, t, i, j] - stiffness[b, t, j, i])
             k = stage[b, t]
             if n == 2:  # from the entries, no views
+                k00, k01, k10, k11 = stiffness[b, t, 0, 0], stiffness[b, t, 0, 1], stiffness[b, t, 1, 0], stiffness[b, t, 1, 1]
                 values = state_values_2(
-                    stiffness[b, t, 0, 0], stiffness[b, t, 0, 1], stiffness[b, t, 1, 0], stiffness[b, t, 1, 1],
-                    du[b, t, 0], du[b, t, 1], k >= 0 and controlled[k, 0], k >= 0 and controlled[k, 1], k >= 0,
+                    k00, k01, k10, k11, du[b, t, 0], du[b, t, 1], k >= 0 and controlled[k, 0],
+                    k >= 0 and controlled[k, 1], k >= 0,
                 )
             else:
                 values = state_values(stiffness[b, t], du[b, t], controlled[k] if k >= 0 else none)
             for v in range(len(values)):
                 out[v, b, t] = values[v]
-
-def batch_signature() -> Any:
-    """The signature :func:`stored_state_indicators` compiles: inputs of any layout, read
-    only or not (a view of the recorder's padded rows, a contiguous stack, an archive's
-    arrays), and outputs of any layout (a block's share of the Dataset's arrays): one
-    compilation."""
-    from numba import types
-
-    def array(dtype: Any, ndim: int, readonly: bool = False) -> Any:
-        return types.Array(dtype, ndim, "A", readonly=readonly)
-
-    return types.void(
-        array(types.float64, 4, True), array(types.float64, 3, True), array(types.int64, 2, True),
-        array(types.boolean, 2, True), array(types.float64, 4), array(types.float64, 4), array(types.float64, 3),
-    )
+            if identity_mass:
+                finite = np.isfinite(k00) and np.isfinite(k01) and np.isfinite(k10) and np.isfinite(k11)
+                finite = finite and np.isfinite(u[b, t, 0]) and np.isfinite(u[b, t, 1])
+                out[3, b, t] = undamped_growth_2(k00, k01, k10, k11) if finite else np.nan
 
 
-@functools.cache
-def _module(plain: bool = False) -> Any:
-    """This module's functions in a generated module of the cache folder (compiled, or
-    with ``plain`` run as plain Python)."""
-    from ncstab.generated_modules import compiled_module
-
-    return compiled_module(
-        __name__, determinant_2, hill_2, discriminant_2, determinant, hill, eigenvalue_discriminant,
-        controlled_determinant, normalised_work_2, normalised_work, state_values_2, state_values, _states_batch,
-        plain=plain,
-    )
-
-
-_COMPILING = threading.Lock()
-
-
-@functools.cache
-def _compiled_batch() -> Any:
-    batch = _module()._states_batch
-    batch.compile(batch_signature())
-    batch.disable_compile()
-    return batch
-
-
-def machine_code() -> Any:
-    """The compiled batch for :func:`batch_signature` (from numba's cache, or compiled now;
-    one thread at a time), taking arrays of any layout without compiling again."""
-    with _COMPILING:
-        return _compiled_batch()
-
-
-def stored_state_indicators(
-    stiffness: np.ndarray, du: np.ndarray, stage: np.ndarray, controlled: np.ndarray,
-    out: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None, plain: bool | None = None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """K_sym, K_skew and :data:`INDICATOR_NAMES` at stored states.
-
-    Parameters
-    ----------
-    stiffness, du, stage
-        ``(cases, steps, n, n)``, ``(cases, steps, n)`` and ``(cases, steps)``: K, the
-        increment along the path and the stage of each stored state (-1: padding after
-        a case's last state), any layout (views are read where they are).
-    controlled
-        ``(stages, n)`` booleans: the force-controlled dofs of each stage.
-    out
-        Where to write (``K_sym``, ``K_skew``, the indicators ``(5, cases, steps)``), any
-        layout: new arrays where None.
-    plain
-        Whether to run the functions as plain Python; None: as
-        :func:`ncstab.paths.loop_route.evaluates_plain` says for this many states.
-
-    Returns
-    -------
-    K_sym, K_skew, indicators
-        ``out``: the first two shaped like ``stiffness``; ``indicators[k]`` is
-        ``INDICATOR_NAMES[k]`` at every state.  ``flutter`` is K's discriminant; a system
-        with inertia replaces it (:mod:`ncstab.paths.dataset_dynamics`).
-    """
-    cases, steps = stage.shape
-    if out is None:
-        out = (np.empty(stiffness.shape), np.empty(stiffness.shape), np.empty((len(INDICATOR_NAMES), cases, steps)))
-    if cases * steps:
-        if plain is None:
-            plain = runs_plain(cases * steps)
-        arguments = (stiffness, du, np.asarray(stage, dtype=np.int64), np.asarray(controlled, dtype=np.bool_), *out)
-        if plain:
-            with np.errstate(all="ignore"):
-                _module(plain=True)._states_batch(*arguments)
-        else:
-            machine_code()(*arguments)
-    return out
-
-
-def runs_plain(states: int) -> bool:
-    """Whether :func:`stored_state_indicators` runs ``states`` states as plain Python (its
-    machine code not cached yet, and few states: :func:`ncstab.paths.loop_route.evaluates_plain`)."""
-    from ncstab.paths.loop_route import evaluates_plain
-
-    return evaluates_plain(states, _module()._states_batch)
+def batch_of_growths(product, out):
+    """:func:`undamped_growth_2` of each ``(2, 2)`` row of ``product`` into ``out``."""
+    for b in range(out.shape[0]):
+        out[b] = undamped_growth_2(product[b, 0, 0], product[b, 0, 1], product[b, 1, 0], product[b, 1, 1])
