@@ -109,6 +109,13 @@ def test_side_by_side_runs_the_first_task_here_and_the_others_on_ncstab_s_thread
     with pytest.raises(RuntimeError, match="share failed"):
         side_by_side([fails, lambda: done.append(1)], "probe")
     assert done == [1]
+    nested = []
+
+    def shares_out():  # on ncstab's thread, sharing out again: run there, no wait on itself
+        side_by_side([lambda: nested.append(threading.current_thread())] * 2, "inner")
+
+    side_by_side([lambda: None, shares_out], "probe")
+    assert len(nested) == 2 and nested[0] is nested[1] and nested[0] is not threading.current_thread()
 
 
 @pytest.mark.parametrize("count", [0, -2, 1.5, True])
