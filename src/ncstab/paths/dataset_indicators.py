@@ -6,9 +6,10 @@ normalised second-order work, the ``flutter`` variable and the determinant of
 the mixed control.  They come from K, du and the stage by the compiled per-state
 functions the stage loop uses for its events
 (:func:`ncstab.operators.stored_states.stored_state_indicators`, reading the
-stored states where the recorder keeps them: no copies), and for a system with
-inertia the ``flutter`` variable from M(u) s^2 + C s + K
-(:mod:`ncstab.paths.dataset_dynamics`).
+stored states where the recorder keeps them: no copies).  The ``flutter``
+variable of a system with inertia is max Re s of M(u) s^2 + C s + K: in the same
+pass for two dofs with M = I and C = 0 (the reduced diamond), else from
+:mod:`ncstab.paths.dataset_dynamics`.
 
 Each state's values come from that state alone, so they are computed in blocks
 of about :data:`BLOCK_STATES` states (whole cases), dealt out to the study's
