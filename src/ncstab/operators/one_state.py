@@ -7,8 +7,9 @@ characteristic polynomial for flutter without inertia, det K_SS for the
 controllability of a mixed control: :mod:`ncstab.paths.loop_diamond_model`,
 :mod:`ncstab.paths.loop_general_output`); the Dataset computes them at every
 stored state by :mod:`ncstab.operators.stored_states`, which runs this module's
-batch loops (:func:`batch_of_states`, :func:`batch_of_growths`) over the states, one after the
-other, compiled in a generated module of the cache folder or as plain Python.
+batch loops (:func:`batch_of_states`, :func:`batch_of_growths`) over the states,
+one after the other, compiled in a generated module of the cache folder or as
+plain Python.
 
 For two dofs every indicator is a closed form, the operations of
 :mod:`ncstab.operators.indicators` in the same order (the same numbers, bit for
@@ -25,9 +26,9 @@ import numpy as np
 from ncstab.jit import hot, njit
 
 __all__ = [
-    "INDICATOR_NAMES", "batch_of_growths", "batch_of_states", "controlled_determinant", "determinant", "determinant_2", "discriminant_2",
-    "eigenvalue_discriminant", "hill", "hill_2", "normalised_work", "normalised_work_2", "state_values",
-    "state_values_2", "undamped_growth_2",
+    "INDICATOR_NAMES", "batch_of_growths", "batch_of_states", "controlled_determinant", "determinant",
+    "determinant_2", "discriminant_2", "eigenvalue_discriminant", "hill", "hill_2", "normalised_work",
+    "normalised_work_2", "state_values", "state_values_2", "undamped_growth_2",
 ]
 
 #: The scalar indicators of :func:`state_values`, in its order (the Dataset's variables).
@@ -240,7 +241,8 @@ def batch_of_states(stiffness, du, u, stage, controlled, identity_mass, symmetri
                     skew[b, t, i, j] = 0.5 * (stiffness[b, t, i, j] - stiffness[b, t, j, i])
             k = stage[b, t]
             if n == 2:  # from the entries, no views
-                k00, k01, k10, k11 = stiffness[b, t, 0, 0], stiffness[b, t, 0, 1], stiffness[b, t, 1, 0], stiffness[b, t, 1, 1]
+                k00, k01 = stiffness[b, t, 0, 0], stiffness[b, t, 0, 1]
+                k10, k11 = stiffness[b, t, 1, 0], stiffness[b, t, 1, 1]
                 values = state_values_2(
                     k00, k01, k10, k11, du[b, t, 0], du[b, t, 1], k >= 0 and controlled[k, 0],
                     k >= 0 and controlled[k, 1], k >= 0,
@@ -249,7 +251,7 @@ def batch_of_states(stiffness, du, u, stage, controlled, identity_mass, symmetri
                 values = state_values(stiffness[b, t], du[b, t], controlled[k] if k >= 0 else none)
             for v in range(len(values)):
                 out[v, b, t] = values[v]
-            if identity_mass:
+            if identity_mass and n == 2:
                 finite = np.isfinite(k00) and np.isfinite(k01) and np.isfinite(k10) and np.isfinite(k11)
                 finite = finite and np.isfinite(u[b, t, 0]) and np.isfinite(u[b, t, 1])
                 out[3, b, t] = undamped_growth_2(k00, k01, k10, k11) if finite else np.nan
