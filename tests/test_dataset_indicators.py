@@ -8,8 +8,9 @@ its events and the Dataset runs them over every stored state
 
 * for two dofs (the diamond under two stages and two laws, paths of different
   lengths, NaN padding; Ziegler's pendulum with masses swept, whose ``flutter``
-  variable comes from M(u), C and K): bit for bit what numpy's vectorized
-  operators (``ncstab.operators.indicators``) give on the whole sweep at once;
+  variable comes from M(u), C and K, as the diamond's with M = I and C = 0): bit
+  for bit what numpy's vectorized operators (``ncstab.operators.indicators``,
+  ``ncstab.paths.dataset_dynamics``) give on the whole sweep at once;
 * the same functions run as plain Python and as machine code: bit for bit;
 * beyond two dofs, against LAPACK through numpy on random matrices, to 1e-12
   relative (LU and symmetric eigenvalues in another order of operations: a few
@@ -28,7 +29,7 @@ from ncstab.operators.indicators import (
     det_K, flutter_discriminant, hill_eigenvalue, mixed_control_determinant, skew_part, symmetric_part,
 )
 from ncstab.paths import SystemSpec, follow
-from ncstab.paths.dataset_dynamics import case_parameters, flutter_variable
+from ncstab.paths.dataset_dynamics import case_parameters, state_dynamics
 from ncstab.paths.dataset_indicators import state_indicators
 
 DIAMOND = (
@@ -85,7 +86,8 @@ def test_two_dofs_give_numpy_s_operators_on_the_whole_sweep_bit_for_bit(path, ro
     whole = {
         "K_sym": symmetric_part(K), "K_skew": skew_part(K), "det_K": det_K(K), "hill": hill_eigenvalue(K),
         "d2W": _normalised_work(K, du),
-        "flutter": flutter_variable(path, u, K, case_parameters(path, (length,))),
+        "flutter": (flutter_discriminant(K) if path.model.definition.mass is None
+                    else state_dynamics(path, u, K, case_parameters(path, (length,)))),  # (numpy's M, C and K)
         "mixed_control": path.mixed_control(K, stage),
     }
     assert set(got) == set(whole)
@@ -200,3 +202,20 @@ def test_the_growth_rate_of_two_dofs_is_the_same_plain_and_compiled(monkeypatch)
     np.testing.assert_array_equal(plain, compiled)
     assert np.isnan(compiled[[3, 4]]).all() and np.isfinite(np.delete(compiled, [3, 4])).all()
     assert (compiled[np.isfinite(compiled)] >= 0).all()
+
+
+def test_two_dofs_from_the_entries_are_the_general_function_s_numbers():
+    """The pass takes two dofs from K's entries (``state_values_2``, no views): the numbers of
+    the general ``state_values`` for every control (none, either force, both), bit for bit."""
+    from ncstab.plain_python import plain_import
+
+    functions = plain_import("ncstab.operators.one_state")
+    rng = np.random.default_rng(11)
+    for _ in range(50):
+        K, du = rng.normal(size=(2, 2)), rng.normal(size=2)
+        for controlled in ([False, False], [True, False], [False, True], [True, True]):
+            general = functions.state_values(K, du, np.array(controlled))
+            entries = functions.state_values_2(K[0, 0], K[0, 1], K[1, 0], K[1, 1], du[0], du[1], *controlled, True)
+            np.testing.assert_array_equal(np.array(general, dtype=float), np.array(entries, dtype=float))
+    no_stage = functions.state_values(K, du, np.zeros(0, dtype=bool))
+    assert np.isnan(no_stage[4]) and np.isnan(functions.state_values_2(*K.ravel(), *du, False, False, False)[4])

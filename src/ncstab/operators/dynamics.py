@@ -33,6 +33,7 @@ from numpy.typing import ArrayLike
 from ncstab.operators.dynamic_matrices import as_dynamic_matrices, regular_mass, solve_mass
 from ncstab.operators.indicators import det_K
 from ncstab.operators.onset_cases import damped_onsets, frequency_discriminants
+from ncstab.operators.stored_states import undamped_growths
 
 __all__ = [
     "critical_frequency",
@@ -100,7 +101,7 @@ def flutter_indicator(
     Undamped cases take a shortcut with the same roots: s = +-sqrt(mu) with mu
     the n eigenvalues of -M^-1 K, so max Re s is the largest |Re sqrt(mu)| --
     an n x n problem instead of the 2n x 2n companion; for n = 2 in closed
-    form (:func:`_undamped_growth_2`).
+    form (:func:`ncstab.operators.one_state.undamped_growth_2`).
     """
     mass, damping, stiffness = as_dynamic_matrices(mass, damping, stiffness)
     undamped = _undamped(damping, mass.shape[:-2])
@@ -119,20 +120,11 @@ def _undamped_growth(mass: np.ndarray, stiffness: np.ndarray) -> np.ndarray:
     mu of -M^-1 K (:func:`flutter_indicator`), NaN where M is singular."""
     product, valid = solve_mass(mass, stiffness)
     if mass.shape[-1] == 2:
-        growth = _undamped_growth_2(product)
+        growth = undamped_growths(product)  # (the Dataset's compiled pass calls the same function)
     else:
         mu = -np.linalg.eigvals(product).astype(complex)
         growth = np.abs(np.sqrt(mu).real).max(axis=-1)
     return np.where(valid, growth, np.nan)
-
-
-def _undamped_growth_2(product: np.ndarray) -> np.ndarray:
-    """max |Re sqrt(mu)| over the two eigenvalues mu of -P, P = M^-1 K ``(..., 2, 2)``, in real
-    arithmetic: :func:`ncstab.operators.one_state.undamped_growth_2` of each case, the
-    function the Dataset's compiled pass calls at every stored state."""
-    from ncstab.operators.stored_states import undamped_growths
-
-    return undamped_growths(product)
 
 
 def divergence_indicator(

@@ -209,16 +209,12 @@ def state_values(matrix, du, controlled):
     where the state has no stage: det K_SS NaN).  NaN where K is not finite (the closed
     forms of two dofs give what IEEE arithmetic gives, as numpy's do)."""
     n = matrix.shape[0]
-    if n == 2:
-        staged = controlled.shape[0] == 2
-        return state_values_2(matrix[0, 0], matrix[0, 1], matrix[1, 0], matrix[1, 1], du[0], du[1],
-                              staged and controlled[0], staged and controlled[1], staged)
     finite = True
     for i in range(n):
         for j in range(n):
             finite = finite and np.isfinite(matrix[i, j])
     det_k, least, mixed = np.nan, np.nan, np.nan
-    if finite:
+    if n == 2 or finite:
         det_k = determinant(matrix)
         least = hill(matrix)
         if controlled.shape[0] == n:
@@ -240,7 +236,7 @@ def batch_of_states(stiffness, du, u, stage, controlled, identity_mass, symmetri
                     symmetric[b, t, i, j] = 0.5 * (stiffness[b, t, i, j] + stiffness[b, t, j, i])
                     skew[b, t, i, j] = 0.5 * (stiffness[b, t, i, j] - stiffness[b, t, j, i])
             k = stage[b, t]
-            if n == 2:  # from the entries, no views
+            if n == 2:  # from the entries, no views (state_values' numbers, bit for bit)
                 k00, k01 = stiffness[b, t, 0, 0], stiffness[b, t, 0, 1]
                 k10, k11 = stiffness[b, t, 1, 0], stiffness[b, t, 1, 1]
                 values = state_values_2(

@@ -4,8 +4,9 @@ At every stored state (or located event) of a system with inertia, the
 system's mass and damping matrices (:func:`ncstab.systems.compile.compile_system`)
 with the stored K give the growth rate max Re s (the ``flutter`` variable),
 the critical frequency at a flutter onset, or the 2n roots (``spectrum_re``,
-``spectrum_im``); a system without inertia gets the discriminant of K
-(:func:`ncstab.operators.indicators.flutter_discriminant`).
+``spectrum_im``).  (A system without inertia has the discriminant of K as its
+``flutter`` variable, and a two-dof system with M = I and C = 0 its growth rate,
+both from :mod:`ncstab.operators.stored_states`.)
 """
 
 from __future__ import annotations
@@ -15,12 +16,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ncstab.operators.indicators import flutter_discriminant
-
 if TYPE_CHECKING:  # pragma: no cover
     from ncstab.paths.result import PathResult
 
-__all__ = ["case_parameters", "dynamics_at_states", "flutter_variable", "state_dynamics", "stored_spectrum"]
+__all__ = ["case_parameters", "dynamics_at_states", "state_dynamics", "stored_spectrum"]
 
 
 def case_parameters(result: "PathResult", extra: tuple[int, ...]) -> tuple[np.ndarray, ...]:
@@ -86,14 +85,3 @@ def _at_finite_states(
         with np.errstate(invalid="ignore"):
             out[finite] = function(mass, damping, flat_K[finite])
     return out.reshape(u.shape[:-1] + tail)
-
-
-def flutter_variable(
-    result: "PathResult", u: np.ndarray, K: np.ndarray, parameters: tuple[np.ndarray, ...]
-) -> np.ndarray:
-    """The ``flutter`` variable at states ``u`` ``(..., n)``: max Re s of the system's
-    dynamics (``parameters``: one value per state, :func:`state_dynamics`), or the
-    discriminant of K for a system without inertia."""
-    if result.model.definition.mass is None:
-        return flutter_discriminant(K)
-    return state_dynamics(result, u, K, parameters)

@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ncstab.paths.dataset_dynamics import case_parameters, flutter_variable
+from ncstab.paths.dataset_dynamics import case_parameters, state_dynamics
 from ncstab.paths.threads import in_shares
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -94,7 +94,7 @@ def state_indicators(
                                 (symmetric[share], skew[share], values[:, share]), plain)
         if inertia:  # max Re s of M s^2 + C s + K
             parameters = tuple(np.repeat(p[share], length) for p in per_case)
-            values[INDICATOR_NAMES.index("flutter"), share] = flutter_variable(
+            values[INDICATOR_NAMES.index("flutter"), share] = state_dynamics(
                 result, rows["u"][share], rows["K"][share], parameters)
 
     per_block = max(1, BLOCK_STATES // max(length, 1))
