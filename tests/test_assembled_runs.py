@@ -193,10 +193,15 @@ def test_a_corrector_failing_at_the_rounding_floor_says_so(monkeypatch, at_floor
     assert "the corrector does not converge" in outcome.message
 
 
-def test_a_tangent_turning_at_every_step_says_so(monkeypatch):
-    # a tangent that always turns by more than MAX_TURN: every step is taken again shorter
+@pytest.mark.parametrize("at_floor", [True, False])
+def test_a_tangent_turning_at_every_step_says_so(monkeypatch, at_floor):
+    # a tangent that always turns by more than MAX_TURN: every step is taken again shorter; the
+    # message names the rounding floor only where the turned steps' residual reached it (the
+    # 10,001-link column past P1 fails this way: its corrector converges, its tangent is rounding)
     from ncstab.paths import assembled_path
     from ncstab.systems.assembled_builders import assembled_column
+
+    monkeypatch.setattr(assembled_path, "at_rounding_floor", lambda *args: at_floor)
 
     tangent = assembled_path.Stepper.tangent
     calls = {"n": 0}
@@ -211,3 +216,4 @@ def test_a_tangent_turning_at_every_step_says_so(monkeypatch):
     outcome = result.results[0].outcomes[0]
     assert outcome.status == "failed:newton"
     assert "the tangent turns by more than 0.2 rad over every step down to min_step" in outcome.message
+    assert outcome.message.endswith("below float64's resolution there)") == at_floor

@@ -296,7 +296,8 @@ def follow_case(run: CaseRun, programme: LoadingProgramme, values: dict[str, flo
             turned = False  # (the corrector converged, but the tangent there turned too far)
             if q is not None:
                 q.tangent = stepper.tangent(q, t)
-                if q.tangent @ t < np.cos(MAX_TURN):
+                if q.tangent @ t < np.cos(MAX_TURN):  # (its residual may be at the floor: its tangent is rounding)
+                    stepper.at_floor = stepper.at_floor or at_rounding_floor(stepper.residual(q), q.state, q.u, q.load)
                     q, turned = None, True
             if q is None:
                 out.rejected += 1
