@@ -274,3 +274,31 @@ def test_pure_shear_first_branch_eq62_eq65():
     )
     with pytest.raises(ValueError, match="model"):
         pure_shear_displacement(alpha, ALPHA0, "elastic")
+
+
+@pytest.mark.parametrize("k", [0.1, 0.3, 0.5563, 0.9])
+def test_the_elastica_deflection_is_that_of_the_integrated_elastica(k):
+    # theta'' = -sin(theta) (lambda = 1) from a pinned end (theta = theta_0 = 2 asin k, no moment)
+    # to midspan (theta = 0), integrated at rtol 1e-12: there s = L / 2 and y is the deflection,
+    # at P / P_cr = (L / pi)^2; elastica_deflection gives y / L from that ratio alone (1e-9: the
+    # integration's tolerance times the inversion's conditioning, 1 / k^2: k >= 0.1)
+    from scipy.integrate import solve_ivp
+
+    from ncstab.systems.closed_forms import elastica_deflection
+
+    def midspan(s, x):
+        return x[0]
+    midspan.terminal, midspan.direction = True, -1
+    solution = solve_ivp(lambda s, x: [x[1], -np.sin(x[0]), np.sin(x[0])], (0.0, 20.0),
+                         [2 * np.arcsin(k), 0.0, 0.0], rtol=1e-12, atol=1e-14, events=midspan, method="DOP853")
+    half, deflection = solution.t_events[0][0], solution.y_events[0][0][2]
+    ratio = (2 * half / np.pi) ** 2
+    assert elastica_deflection(ratio) == pytest.approx(deflection / (2 * half), rel=1e-9)
+
+
+def test_the_elastica_is_straight_up_to_the_critical_load():
+    from ncstab.systems.closed_forms import elastica_deflection
+
+    assert elastica_deflection(1.0) == 0.0
+    with pytest.raises(ValueError, match="P / P_cr >= 1"):
+        elastica_deflection(0.9)

@@ -12,6 +12,7 @@ from ncstab.paths.assembled_control import StageControl, stage_control
 from ncstab.paths.assembled_dynamics import dynamic_indicators, has_dynamics
 from ncstab.paths.assembled_engine import GAP_REACH, MAX_LAMBDA_STEP, MAX_RELATIVE_MOVE, CaseRun, DomainError, Point
 from ncstab.paths import assembled_events
+from ncstab.paths.assembled_mixed import ROUNDING_FLOOR, at_rounding_floor, mixed_solver
 from ncstab.paths.assembled_events import (
     SAME_POINT,
     SWITCHED,
@@ -26,22 +27,6 @@ from ncstab.paths.programme import LoadingProgramme
 from ncstab.paths.trivial_path import is_trivial, trivial_path_signs
 
 __all__ = ["ROUNDING_FLOOR", "CaseOutcome", "at_rounding_floor", "follow_case"]
-
-#: A corrector's residual within this many roundings of the forces it balances is at
-#: float64's floor (:func:`at_rounding_floor`).
-ROUNDING_FLOOR = 8.0
-
-
-def at_rounding_floor(G: np.ndarray, state, u: np.ndarray, load: float) -> bool:
-    """Whether the residual ``G`` is within :data:`ROUNDING_FLOOR` roundings of the forces it
-    balances at ``u`` under ``load``: machine epsilon times |K| |u| + |dR/dP| |P| (max
-    norms).  There Newton's steps are driven by rounding and cannot converge: the path is
-    below float64's resolution (a column of 10,001 links past P1: |G| 2.4e-20 against a
-    floor of 3.3e-20, docs/models.md)."""
-    scale = abs(state.K).max() * np.max(np.abs(u), initial=0.0)
-    scale += np.max(np.abs(state.dR_dload), initial=0.0) * abs(load)
-    return bool(np.max(np.abs(G), initial=0.0) <= ROUNDING_FLOOR * np.finfo(float).eps * scale)
-
 
 #: The largest turn of the path's tangent over one step (radians): a step whose end's
 #: tangent turns more is taken again shorter.
@@ -90,6 +75,9 @@ class Stepper:
         #: Whether a corrector that did not converge since the last accepted step ended at the
         #: rounding floor (:func:`at_rounding_floor`).
         self.at_floor = False
+        #: Whether the bordered systems are solved in mixed form (:mod:`ncstab.paths.assembled_mixed`):
+        #: from a step that failed at the rounding floor to the stage's end.
+        self.mixed = False
 
     def lam(self, y: np.ndarray) -> float:
         return float(y[self.m] * self.control.scale)
@@ -134,7 +122,7 @@ class Stepper:
             G = self.residual(p)
             if not np.all(np.isfinite(G)):
                 return None
-            step = self.run.solve(self.run.bordered(K_SS, column, last), -np.append(G, constraint))
+            step = self.solve(p, K_SS, column, last, -np.append(G, constraint))
             y = y + step
             if np.max(np.abs(step)) <= options.newton_tol * (1.0 + np.max(np.abs(y))):
                 try:
@@ -146,8 +134,16 @@ class Stepper:
 
     def tangent(self, p: Point, previous: np.ndarray) -> np.ndarray:
         K_SS, column = self.run.blocks(self.control, p.state, self.lam(p.y))
-        z = self.run.solve_tangent(self.run.bordered(K_SS, column, previous), _last_unit(self.m + 1))
+        z = self.solve(p, K_SS, column, previous, _last_unit(self.m + 1), tangent=True)
         return z / np.linalg.norm(z)
+
+    def solve(self, p: Point, K_SS, column: np.ndarray, last: np.ndarray, right: np.ndarray, tangent=False):
+        """The bordered system [[K_SS, column], [last]] x = right at p: in mixed form once ``mixed``
+        (where it applies), else with K_SS (for a tangent, accurately next to a bifurcation)."""
+        solver = mixed_solver(self.run, self.control, p, column, last) if self.mixed else None
+        if solver is not None:
+            return solver(right)
+        return (self.run.solve_tangent if tangent else self.run.solve)(self.run.bordered(K_SS, column, last), right)
 
     def indicators(self, p: Point) -> dict[str, float]:
         """Signed indicators at p (tangent known): det K, det K_SS, the bordered det, Hill, dlambda/ds, gaps,
@@ -302,6 +298,7 @@ def follow_case(run: CaseRun, programme: LoadingProgramme, values: dict[str, flo
             if q is None:
                 out.rejected += 1
                 h *= 0.5
+                stepper.mixed = stepper.mixed or stepper.at_floor  # K below float64's resolution
                 if h < options.min_step:
                     where = f"stage {number + 1} at lambda = {stepper.lam(p.y):.6g}"
                     try:

@@ -316,3 +316,24 @@ def ziegler_equal_damping_flutter_load(b: ArrayLike) -> np.ndarray:
     whose limit 41/28 < 7/2 - sqrt 2 as b -> 0 is Ziegler's destabilization paradox."""
     b = np.asarray(b, dtype=float)
     return 41 / 28 + b * b / 2
+
+
+def elastica_deflection(load_ratio: float) -> float:
+    """Largest deflection over length of Euler's pinned-pinned elastica at P / P_cr = ``load_ratio`` >= 1.
+
+    The elastica of length L under P, with lambda^2 = P / EI and k = sin(theta_0 / 2) (theta_0
+    the ends' slope): L = 2 K(k) / lambda and the midspan deflection is 2 k / lambda (Timoshenko
+    & Gere, *Theory of Elastic Stability*, section 2.7), so P / P_cr = (2 K(k) / pi)^2 and the
+    deflection over L is k / K(k), K the complete elliptic integral of the first kind (here of
+    the parameter m = k^2).  Hencky's column of n links (springs C, links a: EI = C a) tends to it
+    as n grows, its joints' deflections over n a within O((pi / n)^2) of this value.
+    """
+    from scipy.optimize import brentq
+    from scipy.special import ellipk
+
+    if not load_ratio >= 1.0:
+        raise ValueError(f"the elastica has a buckled shape for P / P_cr >= 1, got {load_ratio!r}")
+    if load_ratio == 1.0:
+        return 0.0
+    m = brentq(lambda m: (2.0 * ellipk(m) / np.pi) ** 2 - load_ratio, 0.0, 1.0 - 1e-16, xtol=1e-15, rtol=1e-15)
+    return float(np.sqrt(m) / ellipk(m))
