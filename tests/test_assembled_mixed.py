@@ -22,8 +22,10 @@ from ncstab.systems.assembled_builders import assembled_column, assembled_ring
 from ncstab.systems.assembled_chain import assembled_ziegler
 
 
-def _case(system, law, values, u, load):
+def _case(system, law, values, u, load, closed=None):
     run = CaseRun(system, law, values, PathOptions(), "ignore")
+    if closed is not None:
+        run.closed = np.asarray(closed)
     internal = run.initial_internal()
     point = Point(np.zeros(0), u, load, run.evaluate(u, load, internal), internal)
     control = SimpleNamespace(force_dofs=np.arange(run.n), displacement_dofs=np.zeros(0, dtype=np.intp))
@@ -57,15 +59,22 @@ def test_the_mixed_solve_is_numpys_solve_of_the_bordered_system(name):
     np.testing.assert_allclose(got, expected, rtol=0, atol=1e-10 * np.abs(expected).max())
 
 
-def test_a_stage_with_driven_displacements_or_closed_contacts_is_not_covered():
-    # the mixed form here covers stages whose dofs are all force-controlled, contacts open
+def test_a_stage_with_driven_displacements_and_closed_contacts_is_numpys_solve_too():
+    # grain 1's x driven (its part of the column, K_SD u_slope, comes from the members' rows),
+    # a closed secondary contact between grains 1 and 4 (its spring in G): the same agreement
     system, law, values, u, load = SYSTEMS["ring"]()
-    run, control, point = _case(system, law, values, u, load)
-    column, last = np.ones(run.n), np.ones(run.n + 1)
-    driven = SimpleNamespace(force_dofs=np.arange(1, run.n), displacement_dofs=np.array([0]))
-    assert mixed_solver(run, driven, point, column[1:], last[1:]) is None
-    run.closed = np.array([[0, 3]])
-    assert mixed_solver(run, control, point, column, last) is None
+    run, _, point = _case(system, law, values, u, load, closed=[[0, 3]])
+    n = run.n
+    control = SimpleNamespace(force_dofs=np.arange(1, n), displacement_dofs=np.array([0]), u_slope=np.array([1.0]),
+                              f_slope=np.zeros(n - 1), scale=0.7, load_stage=False)
+    K_SS, column = run.blocks(control, point.state, 0.0)
+    K_SS = K_SS.toarray() if hasattr(K_SS, "toarray") else K_SS
+    assert np.abs(column).max() > 0.1  # the driven dof pulls on its neighbours
+    rng = np.random.default_rng(11)
+    last, right = rng.normal(size=n), rng.normal(size=n)
+    expected = np.linalg.solve(np.block([[K_SS, column[:, None]], [last[None, :]]]), right)
+    got = mixed_solver(run, control, point, column, last)(right)
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-10 * np.abs(expected).max())
 
 
 def _column_to_buckled(monkeypatch=None, mixed=False):

@@ -17,9 +17,8 @@ factorizes in 0.02 s.  The border of the arclength equation is eliminated as in
 :meth:`~ncstab.paths.assembled_engine.CaseRun.solve` (Keller's bordering algorithm).
 
 The sparse engine takes this route for the rest of a stage once one of its steps failed at the
-rounding floor (:func:`~ncstab.paths.assembled_path.at_rounding_floor`): everywhere else its
-numbers are those of the assembled K.  Here, a stage whose dofs are all force-controlled (a load
-stage, or forces driven) and whose secondary contacts are all open; elsewhere None.
+rounding floor (:func:`at_rounding_floor`): everywhere else its numbers are those of the
+assembled K.
 """
 
 from __future__ import annotations
@@ -30,8 +29,8 @@ import numpy as np
 import scipy.sparse as sparse
 import scipy.sparse.linalg as splinalg
 
-from ncstab.elements import law_response, shortening, tip_load_terms
-from ncstab.operators.assembly import _weights
+from ncstab.elements import branch_kinematics, law_response, shortening, tip_load_terms
+from ncstab.operators.assembly import _weights, gap_elements
 
 __all__ = ["ROUNDING_FLOOR", "at_rounding_floor", "mixed_solver"]
 
@@ -84,36 +83,33 @@ def _members(run, point):
         yield elements.dofs, J, w[:, None, None] * D, w[:, None, None] * np.einsum("mk,mkab->mab", Q, H)
 
 
-def mixed_solver(run, control, point, column: np.ndarray, last: np.ndarray) -> Callable[[np.ndarray], np.ndarray] | None:
+def mixed_solver(run, control, point, column: np.ndarray, last: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
     """A solver of the bordered system [[K_SS, column], [last]] x = right at ``point``, in mixed
-    form (module docstring); None where this stage or system is not one it covers.
+    form (module docstring).
 
     Parameters
     ----------
     run
         The case (:class:`~ncstab.paths.assembled_engine.CaseRun`).
     control
-        The stage's control (:class:`~ncstab.paths.assembled_control.StageControl`).
+        The stage's control (:class:`~ncstab.paths.assembled_control.StageControl`): its force
+        dofs S are unknowns; its driven dofs D move by u_slope dlambda, so their part of
+        ``column``, K_SD u_slope, is taken from the members instead (B_D u_slope in the rows of z).
     point
         The state (:class:`~ncstab.paths.assembled_engine.Point`): u, load, internal forces.
     column, last
         dG/d(lambda / scale) and the border row, as for ``CaseRun.bordered``.
     """
-    if len(control.displacement_dofs) or len(run.closed):
-        return None
     n, system = run.n, run.system
-    slot = np.empty(n, dtype=np.intp)
-    slot[control.force_dofs] = np.arange(n)  # a dof's row and column among the force dofs
     entries = _Triplets()
-    size = n
+    size = n  # rows and columns: the n dofs, then the members' z
     for dofs, J, wD, curvature in _members(run, point):
-        m, k, L = J.shape
-        local = slot[dofs]
+        m, k, _ = J.shape
         z = size + np.arange(m * k).reshape(m, k)
         size += m * k
-        entries.add(local[:, :, None], local[:, None, :], curvature)  # G
-        entries.add(local[:, :, None], z[:, None, :], np.einsum("mkl,mkp->mlp", J, wD))  # B^T D
-        entries.add(z[:, :, None], local[:, None, :], J)  # B
+        entries.add(dofs[:, :, None], dofs[:, None, :], curvature)  # G
+        entries.add(dofs[:, :, None], z[:, None, :], np.einsum("mkl,mkp->mlp", J, wD))  # B^T D
+        entries.add(z[:, :, None], dofs[:, None, :], J)  # B
         entries.add(z, z, -1.0)
     if system.axial_load is not None:  # bars: B a rise each, D = -P L cos^-3
         bars = system.axial_load
@@ -121,25 +117,37 @@ def mixed_solver(run, control, point, column: np.ndarray, last: np.ndarray) -> C
         length = 1.0 if bars.lengths is None else np.asarray(bars.lengths, dtype=float)
         z = size + np.arange(len(r))
         size += len(r)
-        local = slot[bars.rise_dofs]
-        entries.add(local, z[:, None], bars.rise_signs * (-point.load * length * (1.0 - r * r) ** -1.5)[:, None])
-        entries.add(z[:, None], local, bars.rise_signs)
+        entries.add(bars.rise_dofs, z[:, None], bars.rise_signs * (-point.load * length * (1.0 - r * r) ** -1.5)[:, None])
+        entries.add(z[:, None], bars.rise_dofs, bars.rise_signs)
         entries.add(z, z, -1.0)
     if system.tip_load is not None:  # its own stiffness, -P dQ_ext/du, in G
         _, pairs, blocks = tip_load_terms(system.tip_load, point.u)
-        entries.add(slot[pairs][:, :, None], slot[pairs][:, None, :], -point.load * blocks)
-    lu = splinalg.splu(entries.matrix(size))
-
-    def inner(right: np.ndarray) -> np.ndarray:
-        extended = np.zeros(size)
-        extended[:n] = right
-        return lu.solve(extended)[:n]
-
-    along = inner(column)
+        entries.add(pairs[:, :, None], pairs[:, None, :], -point.load * blocks)
+    if len(run.closed):  # closed secondary contacts' springs, in G (as in the assembled K)
+        springs = gap_elements(system, run.closed)
+        q, J, H = branch_kinematics(springs, point.u)
+        grad, hess = J[:, 0], H[:, 0]
+        blocks = springs.weight * run.kappa * (grad[:, :, None] * grad[:, None, :] + (q[:, 0] - 1.0)[:, None, None] * hess)
+        entries.add(springs.dofs[:, :, None], springs.dofs[:, None, :], blocks)
+    whole = entries.matrix(size)
+    S, D = control.force_dofs, control.displacement_dofs
+    m = len(S)
+    kept = np.concatenate([S, np.arange(n, size)])
+    matrix = whole[kept][:, kept]
+    along_column = np.zeros(len(kept))  # dG/d(lambda / scale) with the members' z in their rows
+    along_column[:m] = column
+    if len(D):
+        slope = control.u_slope * control.scale
+        along_column[:m] -= point.state.K[S][:, D] @ slope  # K_SD's part, summed: taken from the members
+        along_column += whole[kept][:, D] @ slope  # G_SD and B_D
+    lu = splinalg.splu(matrix.tocsc())
+    along = lu.solve(along_column)[:m]
 
     def solve(right: np.ndarray) -> np.ndarray:
-        x = inner(right[:n])
-        step = (right[n] - last[:n] @ x) / (last[n] - last[:n] @ along)
+        extended = np.zeros(len(kept))
+        extended[:m] = right[:m]
+        x = lu.solve(extended)[:m]
+        step = (right[m] - last[:m] @ x) / (last[m] - last[:m] @ along)
         return np.append(x - step * along, step)
 
     return solve

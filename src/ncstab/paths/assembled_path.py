@@ -140,9 +140,8 @@ class Stepper:
     def solve(self, p: Point, K_SS, column: np.ndarray, last: np.ndarray, right: np.ndarray, tangent=False):
         """The bordered system [[K_SS, column], [last]] x = right at p: in mixed form once ``mixed``
         (where it applies), else with K_SS (for a tangent, accurately next to a bifurcation)."""
-        solver = mixed_solver(self.run, self.control, p, column, last) if self.mixed else None
-        if solver is not None:
-            return solver(right)
+        if self.mixed:
+            return mixed_solver(self.run, self.control, p, column, last)(right)
         return (self.run.solve_tangent if tangent else self.run.solve)(self.run.bordered(K_SS, column, last), right)
 
     def indicators(self, p: Point) -> dict[str, float]:
