@@ -72,8 +72,8 @@ class Stepper:
     def __init__(self, run: CaseRun, control: StageControl) -> None:
         self.run, self.control = run, control
         self.m = len(control.force_dofs)
-        #: Whether a corrector that did not converge since the last accepted step ended at the
-        #: rounding floor (:func:`at_rounding_floor`).
+        #: Whether, since the last accepted step, a corrector that did not converge, or a step
+        #: whose tangent turned too far, ended at the rounding floor (:func:`at_rounding_floor`).
         self.at_floor = False
         #: Whether the bordered systems are solved in mixed form (:mod:`ncstab.paths.assembled_mixed`):
         #: from a step that failed at the rounding floor to the stage's end.
@@ -138,8 +138,8 @@ class Stepper:
         return z / np.linalg.norm(z)
 
     def solve(self, p: Point, K_SS, column: np.ndarray, last: np.ndarray, right: np.ndarray, tangent=False):
-        """The bordered system [[K_SS, column], [last]] x = right at p: in mixed form once ``mixed``
-        (where it applies), else with K_SS (for a tangent, accurately next to a bifurcation)."""
+        """The bordered system [[K_SS, column], [last]] x = right at p: in mixed form once ``mixed``,
+        else with K_SS (for a tangent, accurately next to a bifurcation)."""
         if self.mixed:
             return mixed_solver(self.run, self.control, p, column, last)(right)
         return (self.run.solve_tangent if tangent else self.run.solve)(self.run.bordered(K_SS, column, last), right)
