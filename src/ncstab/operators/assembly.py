@@ -33,7 +33,8 @@ import scipy.sparse as sparse
 from ncstab.elements import BranchElements, branch_kinematics, law_response, shortening, tip_load_terms
 from ncstab.systems.assembled import AssembledSystem
 
-__all__ = ["AssembledState", "assemble", "energy_forms", "gap_candidates", "gap_elements"]
+__all__ = ["AssembledState", "assemble", "energy_forms", "gap_candidates", "gap_elements", "gap_springs",
+           "member_responses"]
 
 
 @dataclass
@@ -77,6 +78,35 @@ def _scatter(n: int, dofs: np.ndarray, blocks: np.ndarray, dense: bool):
 def _weights(weight, m: int) -> np.ndarray:
     """The members' weights ``(m,)`` (one for the family, or one per member)."""
     return np.broadcast_to(np.asarray(weight, dtype=float), (m,))
+
+
+def member_responses(system: AssembledSystem, law: Any, parameters: dict[str, float], u: np.ndarray,
+                     internal: dict[str, np.ndarray]):
+    """Each family of members at ``u``: (dofs (m, L), J (m, k, L), H (m, k, L, L), Q (m, k),
+    D = dQ/dq (m, k, k), weights (m,)) -- the contacts under ``law`` (each with the system's
+    alpha0), the springs under their own law; ``internal``: the stored forces per family."""
+    if system.contacts is not None:
+        yield _responses(system.contacts, law_response(law), {**parameters, "alpha0": system.contact_alpha0},
+                         internal["contacts"], u)
+    if system.springs is not None:
+        yield _responses(system.springs, law_response(system.spring_law), parameters, internal["springs"], u)
+
+
+def _responses(elements, response, values, internal, u):
+    q, J, H = elements.kinematics(u)
+    Q, D, _ = response.response(q, response.stored_forces(q, internal, values), values)
+    return elements.dofs, J, H, Q, D, _weights(elements.weight, len(q))
+
+
+def gap_springs(system: AssembledSystem, closed: np.ndarray, u: np.ndarray, kappa: float):
+    """The springs of closed secondary contacts ``closed`` (grain pairs), stiffness kappa, at
+    ``u``: (dofs (p, L), gaps g = l - 1 (p,), forces (p, L), stiffness blocks (p, L, L))."""
+    springs = gap_elements(system, closed)
+    q, J, H = branch_kinematics(springs, u)
+    g = q[:, 0] - 1.0
+    scale = springs.weight * kappa
+    grad, hess = J[:, 0], H[:, 0]
+    return springs.dofs, g, scale * g[:, None] * grad, scale * (grad[:, :, None] * grad[:, None, :] + g[:, None, None] * hess)
 
 
 def _family(kinematics, response, weight, parameters, internal, n, dense):
@@ -197,14 +227,10 @@ def assemble(
         block_parts.append(-load * blocks)
     gaps = np.zeros(0)
     if closed is not None and len(closed):
-        springs = gap_elements(system, closed)
-        q, J, H = branch_kinematics(springs, u)
-        g = q[:, 0] - 1.0
-        scale = springs.weight * kappa
-        grad, hess = J[:, 0], H[:, 0]
-        np.add.at(R, springs.dofs, scale * g[:, None] * grad)
-        dofs_parts.append(springs.dofs)
-        block_parts.append(scale * (grad[:, :, None] * grad[:, None, :] + g[:, None, None] * hess))
+        dofs, g, forces, blocks = gap_springs(system, closed, u, kappa)
+        np.add.at(R, dofs, forces)
+        dofs_parts.append(dofs)
+        block_parts.append(blocks)
         gaps = g
     K = None
     for dofs, blocks in zip(dofs_parts, block_parts):
@@ -236,20 +262,11 @@ def energy_forms(
     the critical load (:func:`ncstab.paths.assembled_path.refine_critical_load`).
     """
     inner, outer = 0.0, 0.0
-    families = []
-    if system.contacts is not None:
-        families.append(("contacts", system.contacts.kinematics(u), law_response(law), system.contacts,
-                         {**parameters, "alpha0": system.contact_alpha0}))
-    if system.springs is not None:
-        families.append(("springs", system.springs.kinematics(u), law_response(system.spring_law), system.springs,
-                         parameters))
-    for name, (q, J, H), response, elements, values in families:
-        f = response.stored_forces(q, internal[name], values)
-        Q, D, _ = response.response(q, f, values)
-        a, b = np.einsum("mkl,ml->mk", J, left[elements.dofs]), np.einsum("mkl,ml->mk", J, right[elements.dofs])
-        curvature = np.einsum("mkab,ma,mb->mk", H, left[elements.dofs], right[elements.dofs])
+    for dofs, J, H, Q, D, w in member_responses(system, law, parameters, u, internal):
+        a, b = np.einsum("mkl,ml->mk", J, left[dofs]), np.einsum("mkl,ml->mk", J, right[dofs])
+        curvature = np.einsum("mkab,ma,mb->mk", H, left[dofs], right[dofs])
         member = np.einsum("mk,mkp,mp->m", a, D, b) + np.sum(Q * curvature, axis=1)
-        inner += float(np.sum(_weights(elements.weight, len(q)) * member))
+        inner += float(np.sum(w * member))
     if closed is not None and len(closed):
         springs = gap_elements(system, closed)
         q, J, H = branch_kinematics(springs, u)

@@ -29,8 +29,8 @@ import numpy as np
 import scipy.sparse as sparse
 import scipy.sparse.linalg as splinalg
 
-from ncstab.elements import branch_kinematics, law_response, shortening, tip_load_terms
-from ncstab.operators.assembly import _weights, gap_elements
+from ncstab.elements import shortening, tip_load_terms
+from ncstab.operators.assembly import gap_springs, member_responses
 
 __all__ = ["ROUNDING_FLOOR", "at_rounding_floor", "mixed_solver"]
 
@@ -67,22 +67,6 @@ class _Triplets:
         return sparse.coo_matrix(data, shape=(size, size)).tocsc()
 
 
-def _members(run, point):
-    """(dofs (m, L), J (m, k, L), w D (m, k, k), w Q H (m, L, L)) of each family of members."""
-    system = run.system
-    families = []
-    if system.contacts is not None:
-        families.append((system.contacts, law_response(run.law), {**run.parameters, "alpha0": system.contact_alpha0},
-                         point.internal["contacts"]))
-    if system.springs is not None:
-        families.append((system.springs, law_response(system.spring_law), run.parameters, point.internal["springs"]))
-    for elements, response, values, internal in families:
-        q, J, H = elements.kinematics(point.u)
-        Q, D, _ = response.response(q, response.stored_forces(q, internal, values), values)
-        w = _weights(elements.weight, len(q))
-        yield elements.dofs, J, w[:, None, None] * D, w[:, None, None] * np.einsum("mk,mkab->mab", Q, H)
-
-
 def mixed_solver(run, control, point, column: np.ndarray, last: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
     """A solver of the bordered system [[K_SS, column], [last]] x = right at ``point``, in mixed
     form (module docstring).
@@ -103,8 +87,9 @@ def mixed_solver(run, control, point, column: np.ndarray, last: np.ndarray) -> C
     n, system = run.n, run.system
     entries = _Triplets()
     size = n  # rows and columns: the n dofs, then the members' z
-    for dofs, J, wD, curvature in _members(run, point):
+    for dofs, J, H, Q, D, w in member_responses(system, run.law, run.parameters, point.u, point.internal):
         m, k, _ = J.shape
+        wD, curvature = w[:, None, None] * D, w[:, None, None] * np.einsum("mk,mkab->mab", Q, H)
         z = size + np.arange(m * k).reshape(m, k)
         size += m * k
         entries.add(dofs[:, :, None], dofs[:, None, :], curvature)  # G
@@ -124,11 +109,8 @@ def mixed_solver(run, control, point, column: np.ndarray, last: np.ndarray) -> C
         _, pairs, blocks = tip_load_terms(system.tip_load, point.u)
         entries.add(pairs[:, :, None], pairs[:, None, :], -point.load * blocks)
     if len(run.closed):  # closed secondary contacts' springs, in G (as in the assembled K)
-        springs = gap_elements(system, run.closed)
-        q, J, H = branch_kinematics(springs, point.u)
-        grad, hess = J[:, 0], H[:, 0]
-        blocks = springs.weight * run.kappa * (grad[:, :, None] * grad[:, None, :] + (q[:, 0] - 1.0)[:, None, None] * hess)
-        entries.add(springs.dofs[:, :, None], springs.dofs[:, None, :], blocks)
+        dofs, _, _, blocks = gap_springs(system, run.closed, point.u, run.kappa)
+        entries.add(dofs[:, :, None], dofs[:, None, :], blocks)
     whole = entries.matrix(size)
     S, D = control.force_dofs, control.displacement_dofs
     m = len(S)
