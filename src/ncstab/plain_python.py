@@ -105,7 +105,8 @@ _STAND_INS = {"numba": _NUMBA, "math": _MATH}
 #: from their own files.  The stage loop is these modules (:mod:`ncstab.paths.loop_cases`
 #: and what it calls), whose decorators come from :mod:`ncstab.jit`.
 PLAIN_IMPORTS = (
-    "ncstab.jit", "ncstab.paths.loop_numerics", "ncstab.paths.loop_signs", "ncstab.paths.cofactor",
+    "ncstab.jit", "ncstab.paths.loop_numerics", "ncstab.paths.loop_signs", "ncstab.paths.bracket",
+    "ncstab.paths.cofactor",
     "ncstab.operators.one_state", "ncstab.operators.onset_cases", "ncstab.paths.loop_diamond_model", "ncstab.paths.loop_diamond",
     "ncstab.paths.loop_general", "ncstab.paths.loop_general_output", "ncstab.paths.loop_dispatch",
     "ncstab.paths.loop_steps", "ncstab.paths.loop_step_limits", "ncstab.paths.loop_start", "ncstab.paths.loop_cases",

@@ -12,7 +12,7 @@ a well-conditioned M).  From them:
   from the roots already computed): the Dataset's ``flutter``;
 * ``onset`` = level - max {Re s : |Im s| > noise}, noise = :data:`GROWTH_NOISE` max(1, |s|_max),
   level = noise for an undamped system (C = 0) and 0 for a damped one: > 0 while no
-  oscillating root grows, < 0 past a flutter onset (a complex pair crossed into Re s > 0).  Its sign change is the ``flutter_onset`` event, located by bisection like every
+  oscillating root grows, < 0 past a flutter onset (a complex pair crossed into Re s > 0).  Its sign change is the ``flutter_onset`` event, located like every
   event of the engine (:mod:`ncstab.paths.assembled_events`).  A real root through 0 (s = 0:
   divergence) is no oscillating root, and is the ``divergence`` event instead, the sign change
   of det K_SS of the stage's control (as the derived route tests it);

@@ -12,8 +12,8 @@ code's update, second order in the step).
 
 After every accepted step the indicators of the archive's events (docs/archive.md) are
 compared with the step's start (:mod:`ncstab.paths.assembled_events`); a sign
-change is located by bisection on the step length, each trial re-corrected
-onto the path.  det K changes sign at a limit point; where the bordered
+change is located on the step length by the Illinois iteration the compiled
+loop uses too (:mod:`ncstab.paths.bracket`), each trial re-corrected onto the path.  det K changes sign at a limit point; where the bordered
 Jacobian's determinant changes sign too the point is a simple bifurcation
 (its tangent space is two-dimensional: the sign of det [[G_y], [t^T]] flips
 along a branch through a branch point and not at a fold).  With

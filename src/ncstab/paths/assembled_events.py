@@ -1,6 +1,7 @@
 """Which events a step of the sparse engine crossed, from the signs of its indicators
 (:mod:`ncstab.paths.assembled_path`): a sign within rounding of zero is no sign, and a
-change found certain late is located in the step where the computed sign changed."""
+change found certain late is located in the step where the computed sign changed, by the
+Illinois iteration the compiled loop uses too (:mod:`ncstab.paths.bracket`)."""
 
 from __future__ import annotations
 
@@ -10,8 +11,13 @@ import numpy as np
 
 from ncstab.operators.sparse_indicators import critical_eigenvalue
 from ncstab.paths.assembled_engine import Point
+from ncstab.plain_python import plain_import
 
-__all__ = ["EIGENVALUE_NOISE", "SAME_POINT", "SECANT_NOISE", "SWITCHED"]
+__all__ = ["EIGENVALUE_NOISE", "SAME_POINT", "SECANT_NOISE", "SWITCHED", "bracket_ends", "computed_indicators",
+           "indicator_value", "locate", "segment_end"]
+
+#: The Illinois iteration's two steps, run as plain Python (the same text the compiled loop runs).
+_BRACKET = plain_import("ncstab.paths.bracket")
 
 
 #: Below this part of max |K_ij| an eigenvalue (Hill's, the one nearest zero) carries no sign.
@@ -129,3 +135,96 @@ def _indicator_key(event: str) -> str:
     return {"bifurcation": "det", "limit_point": "det", "controllability_loss": "det_SS", "hill_loss": "hill",
             "turning_point": "turning", "secondary_contact": "gap", "flutter_onset": "onset",
             "divergence": "divergence"}[event]
+
+
+def locate(stepper, p: Point, t: np.ndarray, h: float, value, ends: tuple[float, float], tol: float):
+    """The sign change of ``value(point)`` on sigma in (0, h), from ``ends`` (its values at
+    0 and h, of opposite signs), by the Illinois iteration (:mod:`ncstab.paths.bracket`, the
+    compiled loop's), each trial re-corrected onto the path; to ``tol`` of the step.
+
+    Returns (sigma, lower, upper, point at sigma).  A trial whose bordered Jacobian is
+    singular (the secant's zero on the very bifurcation point of a trivial path) is taken
+    at the bracket's middle instead; where a trial's corrector fails, the state is
+    re-corrected at the bracket's middle and the iteration ends, as bisection's would.
+    """
+    lower, upper = 0.0, h
+    (f_lower, f_upper), side, last_width = ends, 0, h
+    sigma, found = np.nan, None
+    for iteration in range(200):
+        if upper - lower <= tol * max(h, 1e-300):
+            break
+        trial, last_width = _BRACKET.illinois_trial(lower, upper, f_lower, f_upper, iteration, last_width)
+        q = _corrected(stepper, p, t, trial)
+        if q is _SINGULAR:
+            trial = 0.5 * (lower + upper)
+            q = _corrected(stepper, p, t, trial)
+        if q is None or q is _SINGULAR:
+            found = None
+            break
+        sigma, found = trial, q
+        lower, upper, f_lower, f_upper, side, exact = _BRACKET.illinois_update(
+            lower, upper, f_lower, f_upper, side, trial, value(q))
+        if exact:
+            break
+    if found is None:
+        sigma = 0.5 * (lower + upper)
+        found = _corrected(stepper, p, t, sigma)
+        found = None if found is _SINGULAR else found
+    return sigma, lower, upper, found
+
+
+#: What :func:`_corrected` returns where the bordered Jacobian is singular.
+_SINGULAR = object()
+
+
+def _corrected(stepper, p: Point, t: np.ndarray, sigma: float):
+    """The state at sigma along t from p, corrected onto the path, with its tangent and
+    indicators; None where the corrector fails, ``_SINGULAR`` where a solve is singular."""
+    try:
+        q = stepper.correct(p.y + sigma * t, t, p)
+        if q is not None:
+            q.tangent = stepper.tangent(q, t)
+            q.indicators = stepper.indicators(q)
+    except (np.linalg.LinAlgError, RuntimeError):  # numpy's singular solve; SuperLU's exactly singular factor
+        return _SINGULAR
+    return q
+
+
+def computed_indicators(point: Point) -> dict:
+    """A point's indicators as computed (``raw``, where :func:`_steady` carried some signs)."""
+    return point.indicators if point.raw is None else point.raw
+
+
+def indicator_value(key: str, start: Point):
+    """The signed value at a point whose zero is the crossing of ``key``, for the Illinois
+    iteration: the computed indicator itself, or for a determinant (kept as its sign and
+    log |det|) its sign times |det| / |det at the bracket's start| (a determinant is linear
+    through a simple zero, and the exponent of the ratio is clipped to +-700, in float64's range)."""
+    logs = {"det": "log_det", "det_SS": "log_det_SS", "divergence": "log_det_SS"}
+    if key not in logs:
+        return lambda x: float(computed_indicators(x)[key])
+    log = logs[key]
+    reference = float(computed_indicators(start)[log])
+
+    def determinant_ratio(x: Point) -> float:
+        values = computed_indicators(x)
+        return float(values[key]) * float(np.exp(np.clip(float(values[log]) - reference, -700.0, 700.0)))
+    return determinant_ratio
+
+
+def segment_end(trail: list[_Segment], step: _Segment, q: Point, where: _Segment) -> Point:
+    """The point where segment ``where`` (one of ``trail``, or ``step`` ending at ``q``) ends."""
+    segments = [*trail, step]
+    index = next(k for k, segment in enumerate(segments) if segment is where)
+    return segments[index + 1].start if index + 1 < len(segments) else q
+
+
+def bracket_ends(first: float, last: float, before: float) -> tuple[float, float]:
+    """The values at a bracket's ends, ``first`` of sign ``before`` and ``last`` of the other.
+    An end whose value has not that sign (a turning point detected by the secant's sign, the
+    tangent's already turned at the step's start) takes the other end's size with its sign: the
+    iteration then closes on that end, as bisection on the sign would."""
+    size = next((abs(v) for v in (first, last) if np.isfinite(v) and v != 0.0), 1.0)
+    first = first if _sign(first) == before else before * size
+    last = last if _sign(last) == -before else -before * size
+    return first, last

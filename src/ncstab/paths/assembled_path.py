@@ -22,6 +22,10 @@ from ncstab.paths.assembled_events import (
     _Segment,
     _sign,
     _steady,
+    bracket_ends,
+    indicator_value,
+    locate,
+    segment_end,
 )
 from ncstab.paths.programme import LoadingProgramme
 from ncstab.paths.trivial_path import is_trivial, trivial_path_signs
@@ -171,31 +175,6 @@ class Stepper:
         return out
 
 
-def _locate(stepper: Stepper, p: Point, t: np.ndarray, h: float, test, tol: float):
-    """Bisection on sigma in (0, h) for the sign change of ``test(point)`` (True past the crossing)."""
-    lo, hi = 0.0, h
-    found = None
-    for _ in range(200):
-        if hi - lo <= tol * max(h, 1e-300):
-            break
-        mid = 0.5 * (lo + hi)
-        q = stepper.correct(p.y + mid * t, t, p)
-        if q is None:
-            break
-        q.tangent = stepper.tangent(q, t)
-        q.indicators = stepper.indicators(q)
-        if test(q):
-            hi, found = mid, q
-        else:
-            lo = mid
-    sigma = 0.5 * (lo + hi)
-    q = stepper.correct(p.y + sigma * t, t, p) or found
-    if q is not None:
-        q.tangent = stepper.tangent(q, t)
-        q.indicators = stepper.indicators(q)
-    return sigma, lo, hi, q
-
-
 def _record(out: CaseOutcome, name: str, q: Point, stage: int, s: float, lower: float, upper: float, lam: float) -> None:
     if name in out.events:
         return
@@ -318,21 +297,23 @@ def follow_case(run: CaseRun, programme: LoadingProgramme, values: dict[str, flo
                 before = 1.0 if key == "gap" else _sign(p.indicators["secant"]) if key == "turning" else _sign(p.indicators[key])
                 where = _crossed_segment(trail, step, key, before)
 
-                def test(x, key=key, before=before):
-                    return (x.indicators[key] < 0) if key == "gap" else _sign(x.indicators[key]) == -before
-                sigma, lo, hi, e = _locate(stepper, where.start, where.tangent, where.h, test, options.event_tol)
+                value = indicator_value(key, where.start)
+                ends = bracket_ends(value(where.start), value(segment_end(trail, step, q, where)), before)
+                sigma, lo, hi, e = locate(stepper, where.start, where.tangent, where.h, value, ends, options.event_tol)
                 if e is not None:
                     if name in ("bifurcation", "limit_point"):
                         e = refine_critical_load(stepper, e)
                     crossings.append((where.s + sigma, name, where.s + lo, where.s + hi, e, where))
             if (lam_q - target) * sense >= 0 and (lam_p - target) * sense < 0:
-                sigma, lo, hi, e = _locate(stepper, p, t, h, lambda x: (stepper.lam(x.y) - target) * sense >= 0,
+                def past_target(x: Point) -> float:
+                    return (stepper.lam(x.y) - target) * sense
+                sigma, lo, hi, e = locate(stepper, p, t, h, past_target, bracket_ends(past_target(p), past_target(q), -1.0),
                                            options.event_tol)
                 end = stepper.correct(p.y + sigma * t, t, p, fixed_lambda=target) if e is not None else None
                 if end is not None:
                     end.tangent, end.indicators = e.tangent, e.indicators
                 else:  # Newton at the target itself failed (a column of 5,000 links, buckled): the
-                    end = e  # bisection's point, within event_tol of a step of the target
+                    end = e  # the located point, within event_tol of a step of the target
                 if end is not None:
                     crossings.append((s + sigma, "<end>", s + lo, s + hi, end, step))
             crossings.sort(key=lambda c: c[0])

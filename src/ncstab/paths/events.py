@@ -16,9 +16,10 @@ turning_point          dlambda/ds, the driven quantity's rate along the path
 plus, located the same way, the end of each turn of a cycle stage
 (lambda - 2 pi (k + 1)) and the stage target (lambda - lambda_end).  A sign
 change over an accepted step is located by the Illinois variant of regula falsi
-on the step length sigma in (0, h), each evaluation re-taking the step from its
-start with length sigma (same integrator, same Newton projection), so the
-located state is as accurate as the path itself.
+(:mod:`ncstab.paths.bracket`) on the step length sigma in (0, h), each
+evaluation re-taking the step from its start with length sigma (same
+integrator, same Newton projection), so the located state is as accurate as
+the path itself.
 
 Values within rounding of zero carry no sign (:data:`SIGN_NOISE` of the size of
 what they are built on: K = 2I, gamma = 1 at rest, has a flutter discriminant

@@ -13,12 +13,12 @@ import numpy as np
 
 from ncstab.jit import njit
 from ncstab.paths.compiled import _EXTENDED, _POWER, _STAGES
-from ncstab.paths.events import TINY
+from ncstab.paths.bracket import illinois_trial, illinois_update
 from ncstab.paths.loop_dispatch import (
     evaluate, event_columns, indicators, no_tangent, project, rhs, rhs_hot, state_indicator, state_size, tangent_at,
 )
 from ncstab.paths.loop_numerics import (
-    A_COUNT, A_TERMS, B_COUNT, B_TERMS, D_COUNT, D_TERMS, A, B, D, combine, dense_value, error_norm, sign,
+    A_COUNT, A_TERMS, B_COUNT, B_TERMS, D_COUNT, D_TERMS, A, B, D, combine, dense_value, error_norm,
 )
 
 __all__ = ["dense_coefficients", "dop853", "drop_limit_at_bifurcation", "indicator_at", "locate"]
@@ -74,8 +74,9 @@ def indicator_at(y, column, case, goal, settings, ev, aux, values):
 
 @njit
 def locate(column, offset, span, phi0, phi1, interpolant, case, goal, settings, evaluation, values, state):
-    # a sign change located by the Illinois iteration (events), one pair: returns (sigma, lower, upper) in the piece
-    # (offset, offset + span) of the step (its interpolant); state at sigma
+    # a sign change located by the Illinois iteration (ncstab.paths.bracket), one pair: returns
+    # (sigma, lower, upper) in the piece (offset, offset + span) of the step (its interpolant);
+    # state at sigma
     y0, coefficients, h = interpolant
     ev, aux = evaluation
     event_tol = settings.event_tol
@@ -85,30 +86,12 @@ def locate(column, offset, span, phi0, phi1, interpolant, case, goal, settings, 
     sigma = np.nan
     last_width = upper - lower
     for iteration in range(200):
-        width = upper - lower
-        candidate = (lower * f_upper - upper * f_lower) / (f_upper - f_lower)
-        bisect = not np.isfinite(candidate) or candidate <= lower or candidate >= upper
-        if iteration % 5 == 4:
-            bisect = bisect or width > 0.5 * last_width
-            last_width = width
-        if bisect:
-            candidate = 0.5 * (lower + upper)
+        candidate, last_width = illinois_trial(lower, upper, f_lower, f_upper, iteration, last_width)
         dense_value(y0, coefficients, (offset + candidate) / h, state)
         value = indicator_at(state, column, case, goal, settings, ev, aux, values)
         sigma = candidate
-        a_side = sign(value) == sign(f_lower)
-        b_side = sign(value) == sign(f_upper)
-        exact = abs(value) <= TINY or not np.isfinite(value)
-        if a_side:
-            if side == 1:
-                f_upper *= 0.5
-            lower, f_lower, side = candidate, value, 1
-        if b_side:
-            if side == -1:
-                f_lower *= 0.5
-            upper, f_upper, side = candidate, value, -1
-        if exact:
-            lower = upper = candidate
+        lower, upper, f_lower, f_upper, side, exact = illinois_update(lower, upper, f_lower, f_upper, side,
+                                                                      candidate, value)
         if upper - lower <= event_tol or exact:
             break
     return sigma, lower, upper
