@@ -13,14 +13,16 @@ code's update, second order in the step).
 After every accepted step the indicators of the archive's events (docs/archive.md) are
 compared with the step's start (:mod:`ncstab.paths.assembled_events`); a sign
 change is located on the step length by the Illinois iteration the compiled
-loop uses too (:mod:`ncstab.paths.bracket`), each trial re-corrected onto the path.  det K changes sign at a limit point; where the bordered
+loop uses too (:mod:`ncstab.paths.bracket`), each trial re-corrected onto the
+path.  det K changes sign at a limit point; where the bordered
 Jacobian's determinant changes sign too the point is a simple bifurcation
 (its tangent space is two-dimensional: the sign of det [[G_y], [t^T]] flips
 along a branch through a branch point and not at a fold).  With
 ``at_bifurcation = "switch"`` the path leaves along the bifurcating branch:
-the direction of (phi, 0) -- phi the null vector of K_SS -- orthogonal to the
-incoming tangent (:mod:`ncstab.paths.assembled_path`).  Cost per step: a few sparse factorizations, linear in n for
-banded K.
+the root of the algebraic bifurcation equation in the plane of the incoming
+tangent and (phi, 0), phi the null vector of K_SS, solved by the compiled
+route's function (:func:`ncstab.paths.branch_switching.branch_direction`).
+Cost per step: a few sparse factorizations, linear in n for banded K.
 """
 
 from __future__ import annotations

@@ -7,11 +7,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ncstab.operators.assembly import energy_forms, gap_candidates
-from ncstab.operators.sparse_indicators import critical_eigenvalue, determinant, hill_eigenvalue
+from ncstab.operators.sparse_indicators import critical_eigenvalue, determinant, hill_eigenvalue, is_symmetric
 from ncstab.paths.assembled_control import StageControl, stage_control
 from ncstab.paths.assembled_dynamics import dynamic_indicators, has_dynamics
 from ncstab.paths.assembled_engine import GAP_REACH, MAX_LAMBDA_STEP, MAX_RELATIVE_MOVE, CaseRun, DomainError, Point
 from ncstab.paths import assembled_events
+from ncstab.paths.branch_switching import DERIVATIVE_STEP, bifurcation_coefficients, branch_direction
 from ncstab.paths.assembled_mixed import ROUNDING_FLOOR, at_rounding_floor, mixed_solver
 from ncstab.paths.assembled_events import (
     SAME_POINT,
@@ -182,15 +183,37 @@ def _record(out: CaseOutcome, name: str, q: Point, stage: int, s: float, lower: 
 
 
 def _switch_direction(stepper: Stepper, e: Point, sense: int) -> np.ndarray:
-    """The bifurcating branch's tangent at e: (phi, 0) orthogonal to the incoming tangent."""
-    K_SS, _ = stepper.run.blocks(stepper.control, e.state, stepper.lam(e.y))
+    """The bifurcating branch's tangent at e, from the algebraic bifurcation equation the
+    compiled route solves too (:func:`~ncstab.paths.branch_switching.branch_direction`):
+    t0 the incoming tangent, t1 = (phi, 0) orthogonal to it (phi the null vector of K_SS,
+    which with t0 spans the null space of A = dG/dy = [K_SS | column]), psi the left null
+    vector, c_ij = psi^T D2G[t_i, t_j] by central differences of A (the same step).  On a
+    symmetric pitchfork (Hencky's column) c00 = c11 = 0 and the branch leaves along t1; on
+    a transcritical bifurcation along the other root."""
+    control, run, m = stepper.control, stepper.run, stepper.m
+    K_SS, _ = run.blocks(control, e.state, stepper.lam(e.y))
     _, phi = critical_eigenvalue(K_SS)
-    d = np.append(phi, 0.0)
-    d -= (d @ e.tangent) * e.tangent
-    d /= np.linalg.norm(d)
-    if d[np.argmax(np.abs(d))] < 0:
-        d = -d
-    return sense * d
+    psi = phi if is_symmetric(K_SS) else critical_eigenvalue(K_SS.T)[1]
+    t0 = e.tangent
+    t1 = np.append(phi, 0.0)
+    t1 -= (t1 @ t0) * t0
+    t1 /= np.linalg.norm(t1)
+    if t1[np.argmax(np.abs(t1))] < 0:
+        t1 = -t1
+
+    def along(y: np.ndarray, a: np.ndarray) -> np.ndarray:
+        """A(y) a = K_SS a_S + column a_lambda, the internal variables held at e's."""
+        lam = stepper.lam(y)
+        u = control.displacements(np.append(y[:m], lam), run.n)
+        K, column = run.blocks(control, run.evaluate(u, control.load(lam), e.internal), lam)
+        return K @ a[:m] + column * a[m]
+
+    def second(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        h = DERIVATIVE_STEP
+        return np.array([psi @ (along(e.y + h * b[0], a[0]) - along(e.y - h * b[0], a[0])) / (2 * h)])
+
+    direction = branch_direction(*bifurcation_coefficients(second, t0[None], t1[None]), t0[None], t1[None])[0]
+    return sense * direction
 
 
 def refine_critical_load(stepper: Stepper, e: Point) -> Point:

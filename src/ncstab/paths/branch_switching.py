@@ -32,7 +32,10 @@ import numpy as np
 from ncstab.paths.rhs import StateLayout, evaluate_at, work_forces
 from ncstab.paths.tangent_field import StageArrays, control_matrix, effective_rate
 
-__all__ = ["DERIVATIVE_STEP", "LEAVING_STEP", "bifurcating_direction", "branch_motion", "leave_along_branch"]
+__all__ = [
+    "DERIVATIVE_STEP", "LEAVING_STEP", "bifurcating_direction", "bifurcation_coefficients", "branch_direction",
+    "branch_motion", "leave_along_branch",
+]
 
 #: Step of the central differences for the second derivatives of G.
 DERIVATIVE_STEP = 1e-5
@@ -86,7 +89,27 @@ def bifurcating_direction(
         minus = _jacobian(batch, stage, _shifted(y, b, -h, layout), layout)
         return np.einsum("bi,bij,bj->b", psi, (plus - minus) / (2 * h), a)
 
-    c00, c01, c11 = second(t0, t0), 0.5 * (second(t0, t1) + second(t1, t0)), second(t1, t1)
+    return branch_direction(*bifurcation_coefficients(second, t0, t1), t0, t1)
+
+
+def bifurcation_coefficients(second, t0: np.ndarray, t1: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(c00, c01, c11) of the algebraic bifurcation equation, c_ij = psi^T D2G[t_i, t_j], from
+    ``second(a, b)`` = psi^T D2G[a, b] ``(B,)`` (the mixed one symmetrized: a central
+    difference of A along b applied to a is symmetric only up to its error).  Both engines'
+    (this module's and :mod:`ncstab.paths.assembled_path`'s, each with its own Jacobian)."""
+    return second(t0, t0), 0.5 * (second(t0, t1) + second(t1, t0)), second(t1, t1)
+
+
+def branch_direction(c00: np.ndarray, c01: np.ndarray, c11: np.ndarray, t0: np.ndarray,
+                     t1: np.ndarray) -> np.ndarray:
+    """The bifurcating branch's unit direction ``(B, n + 1)`` a t0 + b t1 from the algebraic
+    bifurcation equation c00 a^2 + 2 c01 a b + c11 b^2 = 0 (Keller 1977; Seydel 5.5).
+
+    Of its two roots, one is the branch followed (t0: c00 = 0 up to the location's
+    accuracy); the other, the root less aligned with t0, is returned, signed so that
+    b >= 0 (t1 along itself where every coefficient is about 0).  Both engines call it.
+    """
+    rows = np.arange(t0.shape[0])
     # The two roots (a, b) of c00 a^2 + 2 c01 a b + c11 b^2 = 0, each written two ways
     # (one of which may vanish); the bifurcating branch is the root less aligned with
     # t0 (the other is the branch followed: c00 = 0 up to the location's accuracy).
