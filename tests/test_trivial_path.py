@@ -3,7 +3,7 @@ stage that ends at its target when Newton at the target itself fails.
 
 A long straight column's critical eigenvalue, (pi/n)^4 against entries of K of order 6, is
 within the rounding of K at 5,000 links: a column that long is slow for a test, so the
-rounding is *declared* larger instead (``assembled_events.EIGENVALUE_NOISE``), which puts a 40-link column's
+rounding is *declared* larger instead (``assembled_events.SIGN_NOISE``), which puts a 40-link column's
 critical eigenvalue (3.8e-5) deep within the "noise": without the exact signs the sign of
 det K would be carried over the whole path and the buckling load never found.
 """
@@ -31,7 +31,7 @@ def _column_events(links: int = LINKS, target: float = 1.2):
 
 
 def test_buckling_found_where_every_eigenvalue_is_declared_within_rounding(monkeypatch):
-    monkeypatch.setattr(assembled_events, "EIGENVALUE_NOISE", 1e-3)  # 6e-3 >> (pi/40)^4 = 3.8e-5
+    monkeypatch.setattr(assembled_events, "SIGN_NOISE", 1e-3)  # 6e-3 >> (pi/40)^4 = 3.8e-5
     outcome = _column_events()
     assert outcome.status == "finished"
     # located by the exact signs, then refined by the pencil's Rayleigh quotient: the closed form
@@ -43,7 +43,7 @@ def test_buckling_found_where_every_eigenvalue_is_declared_within_rounding(monke
 def test_without_the_exact_signs_the_declared_rounding_hides_the_buckling(monkeypatch):
     """The same run with the trivial-path signs turned off: no bifurcation, which is what a
     column of 5,000 links gave before (so the test above can fail)."""
-    monkeypatch.setattr(assembled_events, "EIGENVALUE_NOISE", 1e-3)
+    monkeypatch.setattr(assembled_events, "SIGN_NOISE", 1e-3)
     monkeypatch.setattr(assembled_path, "is_trivial", lambda stepper, p: False)
     assert "bifurcation" not in _column_events().events
 

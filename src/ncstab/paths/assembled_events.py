@@ -11,17 +11,16 @@ import numpy as np
 
 from ncstab.operators.sparse_indicators import critical_eigenvalue
 from ncstab.paths.assembled_engine import Point
+from ncstab.paths.events import SIGN_NOISE
 from ncstab.plain_python import plain_import
 
-__all__ = ["EIGENVALUE_NOISE", "SAME_POINT", "SECANT_NOISE", "SWITCHED", "bracket_ends", "computed_indicators",
+__all__ = ["SAME_POINT", "SECANT_NOISE", "SWITCHED", "bracket_ends", "computed_indicators",
            "indicator_value", "locate", "segment_end"]
 
 #: The Illinois iteration's two steps, run as plain Python (the same text the compiled loop runs).
 _BRACKET = plain_import("ncstab.paths.bracket")
 
 
-#: Below this part of max |K_ij| an eigenvalue (Hill's, the one nearest zero) carries no sign.
-EIGENVALUE_NOISE = 1e-13
 #: Events located this part of a step apart are at the same point (Hill's eigenvalue and det K
 #: vanish together on a symmetric path; eigvalsh locates the first to 1e-8 of a step, the LU 1e-12).
 SAME_POINT = 1e-6
@@ -81,7 +80,7 @@ def _steady(stepper, p: Point, q: Point) -> dict:
     a, b = p.indicators, dict(q.raw)
     K = q.state.K
     scale = float(abs(K).max()) if K.shape[0] else 1.0
-    noise = EIGENVALUE_NOISE * max(scale, 1e-300)
+    noise = SIGN_NOISE * max(scale, 1e-300)  # (the compiled loop's, ncstab.paths.events)
     rise = float(q.y[-1] - p.y[-1])  # the secant's dlambda: robust where the tangent is not
     if a.get(SWITCHED):  # the first step off a switched bifurcation: no sign yet (see SWITCHED)
         b["secant"] = 0.0

@@ -164,7 +164,7 @@ class Stepper:
                "hill": hill_eigenvalue(p.state.K), "turning": float(p.tangent[self.m]),
                "d2W": float(du @ dF / size) if size > 0 else np.nan}
         if is_trivial(self, p):  # signs exact where K's rounding hides them (a long straight column)
-            trivial_path_signs(self, p, out, assembled_events.EIGENVALUE_NOISE)
+            trivial_path_signs(self, p, out, assembled_events.SIGN_NOISE)
         if has_dynamics(self.run.system):  # M s^2 + C s + K: flutter onset, divergence (det K_SS)
             out.update(dynamic_indicators(self.run.system, p.u, p.state.K), divergence=out["det_SS"])
         if self.run.system.grains is not None:

@@ -19,7 +19,7 @@ buckling load would not be found.  Two things are computed without that cancella
 
 Then sign det K = sign(rest) sign(lambda).  On such a path dR/dP = 0 and the tangent is
 (0, t_P), so the bordered determinant is det K_SS t_P.  Used only where Hill's eigenvalue is
-within rounding of zero (:data:`ncstab.paths.assembled_events.EIGENVALUE_NOISE`) and K_SS is
+within rounding of zero (:data:`ncstab.paths.events.SIGN_NOISE`) and K_SS is
 symmetric; the indicators say so with ``exact = 1.0``.
 """
 
