@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ncstab.paths.programme import EVENTS
-from ncstab.paths.variables import FLUTTER_WITHOUT_INERTIA, VARIABLES, family_fields
+from ncstab.paths.variables import FLUTTER_WITHOUT_INERTIA, VARIABLES, family_fields, member_field_dims
 
 if TYPE_CHECKING:  # pragma: no cover
     import xarray
@@ -32,11 +32,7 @@ def assembled_event_fields(definition) -> dict[str, list[str]]:
     fields: dict[str, list[str]] = {"s": [], "s_lower": [], "s_upper": [], "stage": [], "u": ["dof"], "F": ["dof"]}
     if definition.n_dof <= STORED_K_LIMIT:
         fields["K"] = ["i", "j"]
-    for family, names, dimension in family_fields(definition):
-        for name in names:
-            fields[name] = [dimension] if family.size > 1 else []
-    if definition.load is not None:
-        fields["load"] = []
+    fields.update(member_field_dims(definition))
     return fields
 
 

@@ -26,6 +26,7 @@ from ncstab.paths.variables import (
     FLUTTER_WITHOUT_INERTIA,
     VARIABLES,
     family_fields,
+    member_field_dims,
 )
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -197,11 +198,7 @@ def event_field_dims(definition: "SystemDefinition") -> dict[str, list[str]]:
     variables (along their member dimension where a family has several) and ``load``."""
     fields: dict[str, list[str]] = {name: [] for name in COMMON_EVENT_FIELDS}
     fields.update(u=["dof"], F=["dof"], K=["i", "j"])
-    for family, names, dimension in family_fields(definition):
-        for name in names:
-            fields[name] = [dimension] if family.size > 1 else []
-    if definition.load is not None:
-        fields["load"] = []
+    fields.update(member_field_dims(definition))
     return fields
 
 

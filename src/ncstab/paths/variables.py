@@ -11,7 +11,8 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:  # pragma: no cover
     from ncstab.systems.definition import InteractionFamily, SystemDefinition
 
-__all__ = ["CASE_DIMENSION", "EVENT_FIELDS", "MEMBER_DIMENSIONS", "RESERVED_NAMES", "VARIABLES", "family_fields"]
+__all__ = ["CASE_DIMENSION", "EVENT_FIELDS", "MEMBER_DIMENSIONS", "RESERVED_NAMES", "VARIABLES", "family_fields",
+           "member_field_dims"]
 
 #: Dimension of the flat cases of one chunk of a sweep (ncstab.paths.api.CaseRange).
 CASE_DIMENSION = "case"
@@ -119,3 +120,16 @@ def family_fields(definition: SystemDefinition) -> list[tuple[InteractionFamily,
             out.append((family, names, family.dimension))
         seen.add(family.kind)
     return out
+
+
+def member_field_dims(definition: SystemDefinition) -> dict[str, list[str]]:
+    """The interaction variables an event's table stores, with their dimensions (along the
+    family's member dimension where it has several members), then ``load`` for a system
+    under a load: the fields every route's event tables share."""
+    fields: dict[str, list[str]] = {}
+    for family, names, dimension in family_fields(definition):
+        for name in names:
+            fields[name] = [dimension] if family.size > 1 else []
+    if definition.load is not None:
+        fields["load"] = []
+    return fields
