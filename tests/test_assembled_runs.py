@@ -223,3 +223,45 @@ def test_a_tangent_turning_at_every_step_says_so(monkeypatch, at_floor):
     assert outcome.status == "failed:newton"
     assert "the tangent turns by more than 0.2 rad over every step down to min_step" in outcome.message
     assert outcome.message.endswith("below float64's resolution there)") == at_floor
+
+
+@pytest.mark.parametrize("held", [{"F2": 0.3}, {"D3": 0.01}])
+def test_a_stage_holding_a_quantity_away_from_its_value_fails_on_both_routes_alike(held):
+    """A ring held at F2 = 0.3 (or D3 = 0.01) from rest, where it is 0: the sparse engine (12
+    grains) fails the case with ``bad_stage_start`` and the compiled route's words, as the
+    compiled route does on 6 grains.  Before, the sparse engine started the stage from a state
+    that jumped to the held value, silently."""
+    messages = {}
+    for n in (6, 12):
+        holds = {f"F{k}": 0.0 for k in range(2, n + 1) if k != n // 2 + 1}
+        if "D3" in held:
+            del holds["F3"]
+        holds.update(held)
+        programme = [{"hold": holds, "drive": {"D1": 0.05, f"D{n // 2 + 1}": 0.05}}]
+        result = follow(SystemSpec("ring", grains=n), ["mcnamara"], programme, {"gamma": 0.5})
+        ds = result.to_dataset()
+        assert str(ds.status.values.item()) == "failed:bad_stage_start", n
+        messages[n] = str(ds.message.values.item())
+    (name, value), = held.items()
+    assert messages[6] == messages[12]
+    assert f"stage 1 holds {name} = {value} but {name} is not at that value" in messages[12]
+
+
+def test_a_stage_holding_a_quantity_at_its_value_starts():
+    """The same ring of 12 grains holding D3 at "current" (0) and every other force at 0: it
+    starts and finishes.  Held at 0.01 instead, the case fails at the start, stores no state,
+    and its Dataset has every variable of the finished one (no step): the Dataset of a sweep
+    whose every case failed at its start raised a KeyError before."""
+    n = 12
+    datasets = {}
+    for held in ("current", 0.01):
+        holds = {f"F{k}": 0.0 for k in range(2, n + 1) if k not in (3, 7)}
+        holds["D3"] = held
+        datasets[held] = follow(SystemSpec("ring", grains=n), ["mcnamara"],
+                                [{"hold": holds, "drive": {"D1": 0.05, "D7": 0.05}}], {"gamma": 0.5}).to_dataset()
+    finished, failed = datasets["current"], datasets[0.01]
+    assert str(finished.status.values.item()) == "finished"
+    assert str(failed.status.values.item()) == "failed:bad_stage_start" and failed.sizes["step"] == 0
+    assert set(failed.data_vars) == set(finished.data_vars)
+    for name in finished.data_vars:
+        assert failed[name].dims == finished[name].dims, name

@@ -16,9 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ncstab.paths.programme import CURRENT, ProgrammeError, Stage
+from ncstab.paths.programme import CURRENT, ProgrammeError, Stage, held_away, held_away_message
 
-__all__ = ["StageControl", "stage_control"]
+__all__ = ["StageControl", "StageStartError", "stage_control"]
 
 
 @dataclass(frozen=True)
@@ -53,6 +53,11 @@ class StageControl:
         return lam if self.load_stage else self.load_held
 
 
+class StageStartError(ArithmeticError):
+    """A case that cannot start a stage: a held quantity is not at its held value there
+    (the case fails with ``bad_stage_start``, as on the compiled route)."""
+
+
 def stage_control(stage: Stage, number: int, dofs: tuple[str, ...], forces: tuple[str, ...],
                   load_name: str | None, u: np.ndarray, F: np.ndarray, load: float,
                   values: dict[str, float]) -> StageControl:
@@ -78,6 +83,8 @@ def stage_control(stage: Stage, number: int, dofs: tuple[str, ...], forces: tupl
     bases = {name: (0.0 if single else current[name]) for name, _ in drives}
     for name, given in stage.hold.items():
         slopes[name], bases[name] = 0.0, value(name, given)
+        if held_away(bases[name], float(current[name])):
+            raise StageStartError(held_away_message(number, name, given))
     load_stage = load_name is not None and load_name in stage.drive
     force_dofs, displacement_dofs = [], []
     for i, (dof, force) in enumerate(zip(dofs, forces)):

@@ -46,6 +46,11 @@ def _members(point, definition) -> dict[str, np.ndarray]:
     return out
 
 
+#: The indicators stored at every state (:func:`_indicators`), in the Dataset's order.
+INDICATOR_NAMES = ("det_K", "det_K_sign", "log_abs_det_K", "hill", "d2W", "mixed_control", "negative_eigenvalues",
+                   "flutter")
+
+
 def _indicators(point, definition, stored_K: bool):
     """The stored indicators of one state, and K dense where the Dataset keeps it."""
     from ncstab.operators.sparse_indicators import negative_pivots
@@ -96,6 +101,16 @@ def assembled_dataset(result: "AssembledPathResult") -> "xarray.Dataset":
             arrays[name] = np.full((len(outcomes), length, *tail), fill, dtype=dtype)
         return arrays[name]
 
+    # every variable, even where no case stored a state (each failed at its first stage's start)
+    blank("u", n), blank("F", n), blank("s"), blank("stage", fill=-1, dtype=np.int32), blank("lam")
+    if definition.load is not None:
+        blank("load")
+    for name in member_dims:
+        blank(name, *([member_sizes[name]] if member_dims[name] else []))
+    for name in INDICATOR_NAMES:
+        blank(name)
+    if stored_K:
+        blank("K", n, n)
     for c, outcome in enumerate(outcomes):
         for k, point in enumerate(outcome.points):
             blank("u", n)[c, k] = point.u

@@ -8,25 +8,15 @@ import numpy as np
 
 from ncstab.operators.assembly import energy_forms, gap_candidates
 from ncstab.operators.sparse_indicators import critical_eigenvalue, determinant, hill_eigenvalue, is_symmetric
-from ncstab.paths.assembled_control import StageControl, stage_control
+from ncstab.paths.assembled_control import StageControl, StageStartError, stage_control
 from ncstab.paths.assembled_dynamics import dynamic_indicators, has_dynamics
 from ncstab.paths.assembled_engine import GAP_REACH, MAX_LAMBDA_STEP, MAX_RELATIVE_MOVE, CaseRun, DomainError, Point
 from ncstab.paths import assembled_events
 from ncstab.paths.branch_switching import DERIVATIVE_STEP, bifurcation_coefficients, branch_direction
 from ncstab.paths.assembled_mixed import ROUNDING_FLOOR, at_rounding_floor, mixed_solver
 from ncstab.paths.assembled_events import (
-    SAME_POINT,
-    SWITCHED,
-    _crossed_segment,
-    _event_names,
-    _indicator_key,
-    _Segment,
-    _sign,
-    _steady,
-    bracket_ends,
-    indicator_value,
-    locate,
-    segment_end,
+    SAME_POINT, SWITCHED, _crossed_segment, _event_names, _indicator_key, _Segment, _sign, _steady, bracket_ends,
+    indicator_value, locate, segment_end,
 )
 from ncstab.paths.programme import LoadingProgramme
 from ncstab.paths.trivial_path import is_trivial, trivial_path_signs
@@ -259,8 +249,12 @@ def follow_case(run: CaseRun, programme: LoadingProgramme, values: dict[str, flo
     previous = Point(np.zeros(0), u, 0.0, state, run.initial_internal())
     s = 0.0
     for number, stage in enumerate(programme.stages):
-        control = stage_control(stage, number + 1, dofs, forces, load_name, previous.u, previous.state.R,
-                                previous.load, values)
+        try:
+            control = stage_control(stage, number + 1, dofs, forces, load_name, previous.u, previous.state.R,
+                                    previous.load, values)
+        except StageStartError as error:
+            out.status, out.message = "failed:bad_stage_start", str(error)
+            return out
         stepper = Stepper(run, control)
         m = stepper.m
         y0 = np.append(previous.u[control.force_dofs], control.lam_start / control.scale)

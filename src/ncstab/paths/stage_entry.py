@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ncstab.paths.programme import BRANCH_DIMENSION, CURRENT, CycleStage, Stage
+from ncstab.paths.programme import BRANCH_DIMENSION, CURRENT, CycleStage, Stage, held_away, held_away_message
 from ncstab.paths.rhs import evaluate_at
 from ncstab.paths.tangent_field import StageArrays
 
@@ -182,7 +182,7 @@ def _held_away(
     Says why in ``reasons``.
     """
     nominal = resolve(stepper, held, index)
-    mismatch = np.abs(nominal - value) > 1e-9 * (1 + np.abs(nominal))
+    mismatch = held_away(nominal, value)
     if not mismatch.any():
         return mismatch
     hint = np.where(
@@ -190,10 +190,7 @@ def _held_away(
         stepper.batch.closed_gap_hint,
         "",
     )
-    text = (
-        f"stage {k + 1} holds {name} = {held} but {name} is not at that "
-        "value when the stage starts; add a stage that drives it there first"
-    )
+    text = held_away_message(k + 1, name, held)
     reasons[mismatch] = np.char.add(text, hint[mismatch].astype(str)).astype(object)
     return mismatch
 
