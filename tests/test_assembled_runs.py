@@ -265,3 +265,23 @@ def test_a_stage_holding_a_quantity_at_its_value_starts():
     assert set(failed.data_vars) == set(finished.data_vars)
     for name in finished.data_vars:
         assert failed[name].dims == finished[name].dims, name
+
+
+def test_max_steps_counts_accepted_steps_and_says_so_on_both_routes():
+    """``max_steps = 2``: a ring of 6 grains (compiled route, 3 accepted steps to the end) and
+    one of 12 (sparse engine, about 50) fail with ``failed:max_steps`` and the same words,
+    after 2 accepted steps (the sparse engine counted rejected ones too before, and said
+    "more than 2 steps")."""
+    messages = {}
+    for n in (6, 12):
+        holds = {f"F{k}": 0.0 for k in range(2, n + 1) if k != n // 2 + 1}
+        programme = [{"hold": holds, "drive": {"D1": 0.05, f"D{n // 2 + 1}": 0.05}}]
+        result = follow(SystemSpec("ring", grains=n), ["mcnamara"], programme, {"gamma": 0.5},
+                        PathOptions(max_steps=2))
+        ds = result.to_dataset()
+        assert str(ds.status.values.item()) == "failed:max_steps", n
+        messages[n] = str(ds.message.values.item())
+        first = result.results[0]  # the compiled route counts in arrays, the sparse engine per outcome
+        accepted = first.counters["accepted"][0] if n == 6 else first.outcomes[0].accepted
+        assert int(accepted) == 2, n
+    assert messages[6] == messages[12] == "reached max_steps = 2 accepted steps before the end of the programme"

@@ -19,6 +19,7 @@ from ncstab.paths.assembled_events import (
     indicator_value, locate, segment_end,
 )
 from ncstab.paths.programme import LoadingProgramme
+from ncstab.paths.status import max_steps_message
 from ncstab.paths.trivial_path import is_trivial, trivial_path_signs
 
 __all__ = ["ROUNDING_FLOOR", "CaseOutcome", "at_rounding_floor", "follow_case"]
@@ -278,8 +279,8 @@ def follow_case(run: CaseRun, programme: LoadingProgramme, values: dict[str, flo
         h = 0.01 if options.initial_step == "auto" else float(options.initial_step)
         target = control.lam_end
         while True:
-            if out.accepted + out.rejected >= options.max_steps:
-                out.status, out.message = "failed:max_steps", f"stage {number + 1}: more than {options.max_steps} steps"
+            if out.accepted >= options.max_steps:
+                out.status, out.message = "failed:max_steps", max_steps_message(options.max_steps)
                 return out
             h = min(h, MAX_LAMBDA_STEP / max(abs(t[m]), 1e-300),
                     MAX_RELATIVE_MOVE * max(1.0, np.max(np.abs(p.u))) / max(np.max(np.abs(t[:m]), initial=0.0), 1e-300))

@@ -13,7 +13,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ncstab.paths.status import FINISHED, failed, stopped
+from ncstab.paths.status import FINISHED, failed, max_steps_message, stopped
 
 __all__ = ["CaseEnds"]
 
@@ -107,9 +107,4 @@ class CaseEnds:
 
     def fail_max_steps(self, cases: np.ndarray) -> None:
         """Cases ``cases`` fail: ``max_steps`` accepted steps before the end of the programme."""
-        self.fail(
-            cases,
-            "max_steps",
-            f"reached max_steps = {self.options.max_steps} accepted steps before the end of the "
-            "programme",
-        )
+        self.fail(cases, "max_steps", max_steps_message(self.options.max_steps))

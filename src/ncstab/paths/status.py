@@ -7,7 +7,9 @@ stage done), ``stopped:<event>`` (a stop event of its stage) or
 
 from __future__ import annotations
 
-__all__ = ["FAILURE_REASONS", "FINISHED", "RUNNING", "STOPPED_PREFIX", "FAILED_PREFIX", "failed", "stopped"]
+__all__ = [
+    "FAILURE_REASONS", "FINISHED", "RUNNING", "STOPPED_PREFIX", "FAILED_PREFIX", "failed", "max_steps_message", "stopped",
+]
 
 RUNNING = "running"
 FINISHED = "finished"
@@ -33,3 +35,8 @@ def stopped(event: str) -> str:
 def failed(reason: str) -> str:
     """The status of a case that failed for ``reason`` (a key of :data:`FAILURE_REASONS`)."""
     return f"{FAILED_PREFIX}{reason}"
+
+
+def max_steps_message(max_steps: int) -> str:
+    """What a case that failed with ``max_steps`` says (both engines)."""
+    return f"reached max_steps = {max_steps} accepted steps before the end of the programme"
