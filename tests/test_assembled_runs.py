@@ -285,3 +285,21 @@ def test_max_steps_counts_accepted_steps_and_says_so_on_both_routes():
         accepted = first.counters["accepted"][0] if n == 6 else first.outcomes[0].accepted
         assert int(accepted) == 2, n
     assert messages[6] == messages[12] == "reached max_steps = 2 accepted steps before the end of the programme"
+
+
+def test_both_routes_end_a_case_with_the_same_words():
+    """Hencky's column of 4 links (compiled route) and of 12 (sparse engine), P driven to
+    1.2 P1: finished, they say "finished all 1 loading stage(s)"; with ``stop_at = hill_loss``
+    (K is symmetric: Hill's condition is lost at P1) both stop there and say "stopped at
+    hill_loss in stage 1" (the sparse engine said "every stage reached its target" and "stage
+    1: stopped at the hill loss" before)."""
+    for links in (4, 12):
+        P1 = 4 * np.sin(np.pi / (2 * links)) ** 2
+        finished = follow(SystemSpec("column", links=links), None, [{"drive": {"P": 1.2 * P1}}]).to_dataset()
+        assert str(finished.status.values.item()) == "finished", links
+        assert str(finished.message.values.item()) == "finished all 1 loading stage(s)", links
+        stopped = follow(SystemSpec("column", links=links), None,
+                         [{"drive": {"P": 1.2 * P1}, "stop_at": ["hill_loss"]}]).to_dataset()
+        assert str(stopped.status.values.item()) == "stopped:hill_loss", links
+        assert str(stopped.message.values.item()) == "stopped at hill_loss in stage 1", links
+        assert float(stopped.hill_loss_load.values.item()) == pytest.approx(P1, rel=1e-9)

@@ -19,7 +19,7 @@ from ncstab.paths.assembled_events import (
     indicator_value, locate, segment_end,
 )
 from ncstab.paths.programme import LoadingProgramme
-from ncstab.paths.status import max_steps_message
+from ncstab.paths.status import finished_message, max_steps_message, stopped_message
 from ncstab.paths.trivial_path import is_trivial, trivial_path_signs
 
 __all__ = ["ROUNDING_FLOOR", "CaseOutcome", "at_rounding_floor", "follow_case"]
@@ -57,7 +57,7 @@ class CaseOutcome:
     arclength: list[float] = field(default_factory=list)
     events: dict[str, dict] = field(default_factory=dict)
     status: str = "finished"
-    message: str = "every stage reached its target"
+    message: str = ""
     accepted: int = 0
     rejected: int = 0
 
@@ -243,7 +243,7 @@ def _quiet(indicators: dict, keys) -> dict:
 def follow_case(run: CaseRun, programme: LoadingProgramme, values: dict[str, float], dofs, forces,
                 load_name: str | None, progress=None) -> CaseOutcome:
     """Follow one case along ``programme``; never raises for a numerical failure (its status says it)."""
-    out = CaseOutcome()
+    out = CaseOutcome(message=finished_message(len(programme.stages)))
     options = run.options
     u = np.zeros(run.n)
     state = run.evaluate(u, 0.0, run.initial_internal())
@@ -371,7 +371,7 @@ def follow_case(run: CaseRun, programme: LoadingProgramme, values: dict[str, flo
                 break
             if what.startswith("stop:"):
                 out.status = f"stopped:{what[5:]}"
-                out.message = f"stage {number + 1}: stopped at the {what[5:].replace('_', ' ')}"
+                out.message = stopped_message(what[5:], number + 1)
                 return out
             if what == "switch":
                 switched = True

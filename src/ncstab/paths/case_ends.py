@@ -13,7 +13,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ncstab.paths.status import FINISHED, failed, max_steps_message, stopped
+from ncstab.paths.status import FINISHED, failed, finished_message, max_steps_message, stopped, stopped_message
 
 __all__ = ["CaseEnds"]
 
@@ -45,7 +45,7 @@ class CaseEnds:
 
     def finish(self, index: np.ndarray) -> None:
         """Cases ``index`` have done every stage."""
-        self.end(index, FINISHED, f"finished all {len(self.programme)} loading stage(s)")
+        self.end(index, FINISHED, finished_message(len(self.programme)))
 
     def fail_step_size_underflow(self, cases: np.ndarray) -> None:
         """Cases ``cases`` fail: their step size fell below ``min_step``."""
@@ -103,7 +103,7 @@ class CaseEnds:
             which = cases[columns == column]
             name = self.columns.events[column]
             number = self.stage_index[which[0]] + 1
-            self.end(which, stopped(name), f"stopped at {name} in stage {number}")
+            self.end(which, stopped(name), stopped_message(name, number))
 
     def fail_max_steps(self, cases: np.ndarray) -> None:
         """Cases ``cases`` fail: ``max_steps`` accepted steps before the end of the programme."""

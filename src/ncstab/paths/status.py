@@ -8,7 +8,8 @@ stage done), ``stopped:<event>`` (a stop event of its stage) or
 from __future__ import annotations
 
 __all__ = [
-    "FAILURE_REASONS", "FINISHED", "RUNNING", "STOPPED_PREFIX", "FAILED_PREFIX", "failed", "max_steps_message", "stopped",
+    "FAILURE_REASONS", "FINISHED", "RUNNING", "STOPPED_PREFIX", "FAILED_PREFIX", "failed", "finished_message", "max_steps_message",
+    "stopped", "stopped_message",
 ]
 
 RUNNING = "running"
@@ -24,6 +25,9 @@ FAILURE_REASONS = {
     "singular_control": "the control is singular at a stage start, or on the branch a contact switch leads to",
     "bad_stage_start": "a held quantity is not at its held value when the stage starts",
     "memory": "the next step could store more states than the batch's limit per case (ncstab.paths.recorder)",
+    "newton": "the sparse engine's steps shrank below min_step (a corrector that does not converge, or a "
+              "tangent that turns too far), or no equilibrium at a stage's start",
+    "domain": "the sparse engine's path left the system's domain (a bar at right angles to the axis)",
 }
 
 
@@ -40,3 +44,13 @@ def failed(reason: str) -> str:
 def max_steps_message(max_steps: int) -> str:
     """What a case that failed with ``max_steps`` says (both engines)."""
     return f"reached max_steps = {max_steps} accepted steps before the end of the programme"
+
+
+def finished_message(stages: int) -> str:
+    """What a finished case says (both engines)."""
+    return f"finished all {stages} loading stage(s)"
+
+
+def stopped_message(event: str, stage_number: int) -> str:
+    """What a case stopped at ``event`` in stage ``stage_number`` (from 1) says (both engines)."""
+    return f"stopped at {event} in stage {stage_number}"
