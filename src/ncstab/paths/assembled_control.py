@@ -16,7 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ncstab.paths.programme import CURRENT, ProgrammeError, Stage, held_away, held_away_message
+from ncstab.paths.programme import CURRENT, ProgrammeError, Stage
+from ncstab.paths.status import held_away, held_away_message
 
 __all__ = ["StageControl", "StageStartError", "stage_control"]
 

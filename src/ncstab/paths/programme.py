@@ -23,13 +23,10 @@ __all__ = [
     "BRANCH_DIMENSION",
     "EVENTS",
     "CURRENT",
-    "HELD_TOLERANCE",
     "ProgrammeError",
     "Stage",
     "CycleStage",
     "LoadingProgramme",
-    "held_away",
-    "held_away_message",
     "parse_programme",
 ]
 
@@ -47,9 +44,6 @@ EVENTS = (
 
 #: Held value meaning "the value the quantity has when the stage starts".
 CURRENT = "current"
-#: A held quantity further than this part of 1 + |its held value| from it when its stage
-#: starts is not at its held value: the case fails (``failed:bad_stage_start``).
-HELD_TOLERANCE = 1e-9
 
 #: What a stage does at a simple bifurcation point (``Stage.at_bifurcation``).
 AT_BIFURCATION = ("continue", "switch", "branches")
@@ -60,18 +54,6 @@ BRANCH_DIMENSION = "branch"
 LOAD_PARAMETER_NAMES = ("P",)
 
 Value = float | str
-
-
-def held_away(held, value):
-    """Whether a quantity at ``value`` is not at its ``held`` value (:data:`HELD_TOLERANCE`),
-    elementwise for arrays: both engines' test at a stage's start."""
-    return abs(held - value) > HELD_TOLERANCE * (1 + abs(held))
-
-
-def held_away_message(stage_number: int, name: str, held: Value) -> str:
-    """Why a case failed with ``bad_stage_start`` (``stage_number`` from 1): both engines' words."""
-    return (f"stage {stage_number} holds {name} = {held} but {name} is not at that "
-            "value when the stage starts; add a stage that drives it there first")
 
 
 class ProgrammeError(ValueError):

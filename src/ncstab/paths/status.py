@@ -1,5 +1,8 @@
 """The status vocabulary of a case (a leaf module: every layer of the engine reads it).
 
+Both engines (the compiled loop and the sparse engine of assembled systems) end their
+cases with these words, and test a stage's held values with :func:`held_away`.
+
 A case is ``running`` while the engine follows it, then ``finished`` (every
 stage done), ``stopped:<event>`` (a stop event of its stage) or
 ``failed:<reason>`` with a message saying what happened.
@@ -8,8 +11,8 @@ stage done), ``stopped:<event>`` (a stop event of its stage) or
 from __future__ import annotations
 
 __all__ = [
-    "FAILURE_REASONS", "FINISHED", "RUNNING", "STOPPED_PREFIX", "FAILED_PREFIX", "failed", "finished_message", "max_steps_message",
-    "stopped", "stopped_message",
+    "FAILURE_REASONS", "FINISHED", "RUNNING", "STOPPED_PREFIX", "FAILED_PREFIX", "HELD_TOLERANCE", "failed",
+    "finished_message", "held_away", "held_away_message", "max_steps_message", "stopped", "stopped_message",
 ]
 
 RUNNING = "running"
@@ -54,3 +57,20 @@ def finished_message(stages: int) -> str:
 def stopped_message(event: str, stage_number: int) -> str:
     """What a case stopped at ``event`` in stage ``stage_number`` (from 1) says (both engines)."""
     return f"stopped at {event} in stage {stage_number}"
+
+
+#: A held quantity further than this part of 1 + |its held value| from it when its stage
+#: starts is not at its held value: the case fails (``failed:bad_stage_start``).
+HELD_TOLERANCE = 1e-9
+
+
+def held_away(held, value):
+    """Whether a quantity at ``value`` is not at its ``held`` value (:data:`HELD_TOLERANCE`),
+    elementwise for arrays: both engines' test at a stage's start."""
+    return abs(held - value) > HELD_TOLERANCE * (1 + abs(held))
+
+
+def held_away_message(stage_number: int, name: str, held: float | str) -> str:
+    """Why a case failed with ``bad_stage_start`` (``stage_number`` from 1): both engines' words."""
+    return (f"stage {stage_number} holds {name} = {held} but {name} is not at that "
+            "value when the stage starts; add a stage that drives it there first")
