@@ -303,3 +303,18 @@ def test_both_routes_end_a_case_with_the_same_words():
         assert str(stopped.status.values.item()) == "stopped:hill_loss", links
         assert str(stopped.message.values.item()) == "stopped at hill_loss in stage 1", links
         assert float(stopped.hill_loss_load.values.item()) == pytest.approx(P1, rel=1e-9)
+
+
+def test_a_cycle_stage_on_an_assembled_system_is_refused_before_any_work(monkeypatch):
+    """In Python too: ``follow`` raises ProgrammeError naming the stage's ``cycle`` before a
+    case runs (a study file gets exit 2: tests/data/bad_studies/cycle_on_an_assembled_ring.toml)."""
+    from ncstab.paths import assembled_result
+    from ncstab.paths.programme import ProgrammeError
+
+    monkeypatch.setattr(assembled_result, "follow_case", lambda *args, **kwargs: pytest.fail("a case ran"))
+    holds = {f"F{k}": 0.0 for k in range(2, 13) if k != 7}
+    programme = [{"hold": holds, "drive": {"D1": 0.01, "D7": 0.01}},
+                 {"cycle": {"center": [0.02, 0.01], "turns": 1, "dofs": ["D1", "D7"]}}]
+    with pytest.raises(ProgrammeError, match="cycle stages are followed on systems derived whole") as error:
+        follow(SystemSpec("ring", grains=12), ["mcnamara"], programme, {"gamma": 0.5})
+    assert error.value.field == "cycle" and error.value.stage == 2

@@ -19,7 +19,7 @@ import numpy as np
 from ncstab.paths.programme import CURRENT, ProgrammeError, Stage
 from ncstab.paths.status import held_away, held_away_message
 
-__all__ = ["StageControl", "StageStartError", "stage_control"]
+__all__ = ["CYCLE_REFUSED", "StageControl", "StageStartError", "refuse_cycles", "stage_control"]
 
 
 @dataclass(frozen=True)
@@ -54,6 +54,19 @@ class StageControl:
         return lam if self.load_stage else self.load_held
 
 
+#: Why a cycle stage is refused on an assembled system (checked before any work:
+#: :func:`refuse_cycles`, and by the study loader).
+CYCLE_REFUSED = ("cycle stages are followed on systems derived whole (at most 8 dofs): this system is "
+                 "assembled from elements (the sparse engine follows linear stages)")
+
+
+def refuse_cycles(programme) -> None:
+    """Raise :class:`ProgrammeError` naming the first cycle stage of ``programme``, if any."""
+    for number, stage in enumerate(programme.stages, start=1):
+        if not isinstance(stage, Stage):
+            raise ProgrammeError(number, "cycle", CYCLE_REFUSED)
+
+
 class StageStartError(ArithmeticError):
     """A case that cannot start a stage: a held quantity is not at its held value there
     (the case fails with ``bad_stage_start``, as on the compiled route)."""
@@ -64,8 +77,7 @@ def stage_control(stage: Stage, number: int, dofs: tuple[str, ...], forces: tupl
                   values: dict[str, float]) -> StageControl:
     """The control of ``stage`` entered at the state (u, F, load); ``values``: the case's parameters."""
     if not isinstance(stage, Stage):
-        raise ProgrammeError(number, "cycle", "cycle stages are not available for assembled systems (more than "
-                             "the dense engine's dofs); follow them on a system of up to 8 dofs")
+        raise ProgrammeError(number, "cycle", CYCLE_REFUSED)
     current = {**dict(zip(dofs, u)), **dict(zip(forces, F))}
     if load_name is not None:
         current[load_name] = load

@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ncstab.paths.assembled_control import refuse_cycles
 from ncstab.paths.assembled_engine import CaseRun
 from ncstab.paths.assembled_path import CaseOutcome, follow_case
 from ncstab.paths.options import PathOptions
@@ -105,7 +106,9 @@ class AssembledPathResult:
 
 def follow_assembled(model: "Model", programme: LoadingProgramme, grid: Any, values: dict[str, np.ndarray],
                      options: PathOptions, study_text: str = "", progress=None) -> AssembledPathResult:
-    """Follow every law and case of ``grid`` on the assembled system of ``model``."""
+    """Follow every law and case of ``grid`` on the assembled system of ``model`` (a cycle stage
+    is refused before any work: :func:`~ncstab.paths.assembled_control.refuse_cycles`)."""
+    refuse_cycles(programme)
     definition = model.definition
     results = []
     for law in model.laws:

@@ -36,6 +36,7 @@ from ncstab.studies.study_fields import (
     toml_type,
 )
 from ncstab.systems import SystemKind
+from ncstab.systems.assembled import is_assembled
 
 
 def stage_value(
@@ -176,6 +177,11 @@ def loading_section(
             continue
         stage, checkable = read_stage(raw, prefix, errors, references, forces)
         if not checkable:
+            continue
+        if "cycle" in stage and is_assembled(definition):
+            from ncstab.paths.assembled_control import CYCLE_REFUSED
+
+            errors.add(f"{prefix}.cycle", f"{CYCLE_REFUSED}; system {definition.name!r} has {definition.n_dof} dofs")
             continue
         if held and _held_controls(stage, prefix, held, errors):
             continue
