@@ -318,3 +318,27 @@ def test_a_cycle_stage_on_an_assembled_system_is_refused_before_any_work(monkeyp
     with pytest.raises(ProgrammeError, match="cycle stages are followed on systems derived whole") as error:
         follow(SystemSpec("ring", grains=12), ["mcnamara"], programme, {"gamma": 0.5})
     assert error.value.field == "cycle" and error.value.stage == 2
+
+
+@pytest.mark.parametrize("grains", [6, 12])
+def test_a_stage_whose_drives_are_at_their_targets_is_skipped(grains):
+    """Driving D1 (and the opposite grain) to 0 from rest is a stage of zero length: alone, the
+    case finishes with no state stored; before a real stage, the archive is that of the real
+    stage alone (its states the same numbers).  The compiled route (6 grains) always did so;
+    the sparse engine (12 grains) drove lambda past its target and failed (``failed:newton``
+    at lambda = 4.3)."""
+    n, opposite = grains, grains // 2 + 1
+    holds = {f"F{k}": 0.0 for k in range(2, n + 1) if k != opposite}
+    nothing = {"hold": {**holds, f"D{opposite}": 0.0}, "drive": {"D1": 0.0}}
+    push = {"hold": holds, "drive": {"D1": 0.01, f"D{opposite}": 0.01}}
+
+    def run(programme):
+        return follow(SystemSpec("ring", grains=n), ["mcnamara"], programme, {"gamma": 0.5}).to_dataset()
+
+    alone = run([nothing])
+    assert str(alone.status.values.item()) == "finished" and int(alone.n_steps.values.item()) == 0
+    after, direct = run([nothing, push]), run([push])
+    assert str(after.status.values.item()) == "finished"
+    assert int(after.n_steps.values.item()) == int(direct.n_steps.values.item()) > 10
+    np.testing.assert_array_equal(after.u.values, direct.u.values)
+    np.testing.assert_array_equal(after.F.values, direct.F.values)

@@ -36,6 +36,9 @@ class StageControl:
     lam_end: float
     load_stage: bool
     load_held: float
+    #: Whether every driven quantity is at its target when the stage starts: the stage is
+    #: skipped, as on the compiled route (its ``target_sign`` 0).
+    zero_length: bool = False
 
     @property
     def scale(self) -> float:
@@ -118,4 +121,5 @@ def stage_control(stage: Stage, number: int, dofs: tuple[str, ...], forces: tupl
         lam_end=float(lam_end),
         load_stage=load_stage,
         load_held=float(load),
+        zero_length=all(target == current[name] for name, target in drives),
     )

@@ -256,6 +256,8 @@ def follow_case(run: CaseRun, programme: LoadingProgramme, values: dict[str, flo
         except StageStartError as error:
             out.status, out.message = "failed:bad_stage_start", str(error)
             return out
+        if control.zero_length:  # every driven quantity at its target: nothing to follow
+            continue
         stepper = Stepper(run, control)
         m = stepper.m
         y0 = np.append(previous.u[control.force_dofs], control.lam_start / control.scale)
@@ -266,8 +268,8 @@ def follow_case(run: CaseRun, programme: LoadingProgramme, values: dict[str, flo
             return out
         p.tangent = stepper.tangent(p, sense * _last_unit(m + 1))
         p.indicators = {**stepper.indicators(p), "secant": sense}
-        if number == 0:
-            out.points.append(p), out.stages.append(0), out.arclength.append(0.0)
+        if not out.points:  # the programme's first state (after any zero-length stage)
+            out.points.append(p), out.stages.append(number), out.arclength.append(0.0)
         switching = getattr(stage, "at_bifurcation", "continue")
         sense_switch = getattr(stage, "direction", 1)
         if switching == "branches":
