@@ -342,3 +342,28 @@ def test_a_stage_whose_drives_are_at_their_targets_is_skipped(grains):
     assert int(after.n_steps.values.item()) == int(direct.n_steps.values.item()) > 10
     np.testing.assert_array_equal(after.u.values, direct.u.values)
     np.testing.assert_array_equal(after.F.values, direct.F.values)
+
+
+def test_a_stage_driving_the_load_and_a_displacement_together_moves_both_to_their_targets():
+    """Hencky's column of 8 links, P driven to 0.005 and w1 to 0.001 in one stage, the other
+    forces held at 0: lambda runs from 0 to 1 and every stored state has P / w1 = 5 (the
+    control, exactly up to rounding: 1e-12); the end is (P, w1) = (0.005, 0.001), and the
+    sparse engine (the column assembled from elements) ends in the compiled route's state
+    (the derived column of 7 dofs) to 1e-9 (Newton's tolerance).  Before, the sparse engine
+    took lambda itself for P: P ran past 0.17 and the case failed."""
+    from ncstab.systems.assembled_builders import assembled_column
+
+    links = 8
+    programme = [{"hold": {f"F{k}": 0.0 for k in range(2, links)}, "drive": {"P": 0.005, "w1": 0.001}}]
+    ends = {}
+    for name, system in (("compiled", SystemSpec("column", links=links)), ("sparse", assembled_column(links))):
+        ds = follow(system, None, programme).to_dataset()
+        assert str(ds.status.values.item()) == "finished", name
+        n = int(ds.n_steps.values.item())
+        P, u = ds["load"].values.reshape(-1)[:n], ds.u.values.reshape(-1, links - 1)[:n]
+        moving = u[:, 0] != 0
+        assert moving.sum() > 10
+        np.testing.assert_allclose(P[moving] / u[moving, 0], 5.0, rtol=1e-12, atol=0, err_msg=name)
+        assert P[-1] == pytest.approx(0.005, rel=1e-12) and u[-1, 0] == pytest.approx(0.001, rel=1e-12)
+        ends[name] = u[-1]
+    np.testing.assert_allclose(ends["sparse"], ends["compiled"], rtol=0, atol=1e-9)

@@ -36,6 +36,11 @@ class StageControl:
     lam_end: float
     load_stage: bool
     load_held: float
+    #: A load stage's load is load_base + load_slope lambda: lambda itself where the load is the
+    #: only driven quantity, else it moves from its current value to its target as lambda runs
+    #: from 0 to 1 with the others (as on the compiled route).
+    load_base: float = 0.0
+    load_slope: float = 1.0
     #: Whether every driven quantity is at its target when the stage starts: the stage is
     #: skipped, as on the compiled route (its ``target_sign`` 0).
     zero_length: bool = False
@@ -54,7 +59,7 @@ class StageControl:
         return u
 
     def load(self, lam: float) -> float:
-        return lam if self.load_stage else self.load_held
+        return self.load_base + self.load_slope * lam if self.load_stage else self.load_held
 
 
 #: Why a cycle stage is refused on an assembled system (checked before any work:
@@ -121,5 +126,7 @@ def stage_control(stage: Stage, number: int, dofs: tuple[str, ...], forces: tupl
         lam_end=float(lam_end),
         load_stage=load_stage,
         load_held=float(load),
+        load_base=float(bases[load_name]) if load_stage else 0.0,
+        load_slope=float(slopes[load_name]) if load_stage else 1.0,
         zero_length=all(target == current[name] for name, target in drives),
     )

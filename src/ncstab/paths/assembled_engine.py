@@ -171,8 +171,8 @@ class CaseRun:
             rows = K[S]
             K_SS = rows[:, S]
             column = rows[:, D] @ control.u_slope
-        if control.load_stage:
-            column = column + state.dR_dload[S]
+        if control.load_stage:  # dR/dlambda = dR/dP dP/dlambda
+            column = column + state.dR_dload[S] * control.load_slope
         column = (column - control.f_slope) * control.scale
         return K_SS, column
 

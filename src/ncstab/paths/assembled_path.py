@@ -213,7 +213,8 @@ def refine_critical_load(stepper: Stepper, e: Point) -> Point:
     form (:func:`ncstab.operators.assembly.energy_forms`): stationary at the critical load, and free
     of the cancellation in K's assembled entries that limits a sign-change location at large n."""
     control, run, m = stepper.control, stepper.run, stepper.m
-    if not control.load_stage or e.tangent is None or np.max(np.abs(e.tangent[:m]), initial=0.0) > 1e-10:
+    if not control.load_stage or control.load_slope != 1.0 or control.load_base != 0.0 \
+            or e.tangent is None or np.max(np.abs(e.tangent[:m]), initial=0.0) > 1e-10:  # (lambda = P only)
         return e
     K_SS, _ = run.blocks(control, e.state, stepper.lam(e.y))
     right, left = np.zeros(run.n), np.zeros(run.n)
