@@ -60,3 +60,26 @@ def test_a_transcritical_bifurcation_is_left_along_its_branch(direction):
     np.testing.assert_allclose(P[after], branch_load(w[after]), rtol=0, atol=1e-9)
     if direction == -1:
         assert outcome.status == "finished" and P[-1] == pytest.approx(2.5, rel=1e-12)
+
+
+@pytest.mark.parametrize("direction", [1, -1])
+def test_branch_index_says_which_states_left_the_bifurcation_point_on_both_routes(direction):
+    """Hencky's column of 4 links (compiled route) and of 12 (sparse engine), P swept to 0.5 P1
+    and to 1.2 P1 with the switch at P1: the Dataset's ``branch_index`` is 0 on the straight
+    path, ``direction`` from the bifurcation point on (the point itself, at P1 to 1e-12,
+    included), padded with -1 past each case's ``n_steps`` (the compiled route's layout).
+    The sparse engine had no ``branch_index`` before."""
+    from ncstab.paths.options import SystemSpec
+
+    for links in (4, 12):
+        P1 = 4 * np.sin(np.pi / (2 * links)) ** 2
+        programme = [{"drive": {"P": "Pmax"}, "at_bifurcation": {"switch": True, "direction": direction}}]
+        ds = follow(SystemSpec("column", links=links), None, programme, {"Pmax": [0.5 * P1, 1.2 * P1]}).to_dataset()
+        assert ds.branch_index.dtype == np.int32 and ds.branch_index.dims == ("law", "Pmax", "step")
+        index, load = ds.branch_index.values.reshape(2, -1), ds["load"].values.reshape(2, -1)
+        short, long_ = (int(n) for n in ds.n_steps.values.ravel())
+        assert (index[0, :short] == 0).all() and (index[0, short:] == -1).all()
+        switched = index[1, :long_] != 0
+        assert (index[1, :long_][switched] == direction).all() and switched[-1]
+        assert not switched[0] and (np.diff(switched.astype(int)) >= 0).all()  # once left, never back
+        assert load[1, :long_][switched].min() == pytest.approx(P1, rel=1e-12)

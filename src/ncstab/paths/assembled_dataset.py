@@ -103,6 +103,7 @@ def assembled_dataset(result: "AssembledPathResult") -> "xarray.Dataset":
 
     # every variable, even where no case stored a state (each failed at its first stage's start)
     blank("u", n), blank("F", n), blank("s"), blank("stage", fill=-1, dtype=np.int32), blank("lam")
+    blank("branch_index", fill=-1, dtype=np.int32)  # (padded with -1 as on the compiled route; n_steps says where)
     if definition.load is not None:
         blank("load")
     for name in member_dims:
@@ -118,6 +119,7 @@ def assembled_dataset(result: "AssembledPathResult") -> "xarray.Dataset":
             blank("s")[c, k] = outcome.arclength[k]
             blank("stage", fill=-1, dtype=np.int32)[c, k] = outcome.stages[k]
             blank("lam")[c, k] = point.y[-1]
+            blank("branch_index", fill=-1, dtype=np.int32)[c, k] = point.branch
             if definition.load is not None:
                 blank("load")[c, k] = point.load
             for name, values in _members(point, definition).items():

@@ -69,6 +69,9 @@ class Point:
     #: The indicators as computed, before a sign within rounding was replaced by the last
     #: certain one (:func:`ncstab.paths.assembled_events._steady`); None: the same as ``indicators``.
     raw: dict[str, float] | None = None
+    #: 0 on the path followed from the start; +1 or -1 from the simple bifurcation point the
+    #: case left along the bifurcating branch, that way (the Dataset's ``branch_index``).
+    branch: int = 0
 
 
 class CaseRun:

@@ -249,7 +249,7 @@ def follow_case(run: CaseRun, programme: LoadingProgramme, values: dict[str, flo
     u = np.zeros(run.n)
     state = run.evaluate(u, 0.0, run.initial_internal())
     previous = Point(np.zeros(0), u, 0.0, state, run.initial_internal())
-    s = 0.0
+    s, on_branch = 0.0, 0  # (the Dataset's branch_index of the states stored from here)
     for number, stage in enumerate(programme.stages):
         try:
             control = stage_control(stage, number + 1, dofs, forces, load_name, previous.u, previous.state.R,
@@ -271,6 +271,7 @@ def follow_case(run: CaseRun, programme: LoadingProgramme, values: dict[str, flo
         p.indicators = {**stepper.indicators(p), "secant": sense}
         if not out.points:  # the programme's first state (after any zero-length stage)
             out.points.append(p), out.stages.append(number), out.arclength.append(0.0)
+        p.branch = on_branch
         switching = getattr(stage, "at_bifurcation", "continue")
         sense_switch = getattr(stage, "direction", 1)
         if switching == "branches":
@@ -359,6 +360,7 @@ def follow_case(run: CaseRun, programme: LoadingProgramme, values: dict[str, flo
                 out.accepted += 1
                 trail.append(step)
                 s += h
+                q.branch = on_branch
                 out.points.append(q), out.stages.append(number), out.arclength.append(s)
                 p, t = q, q.tangent
                 h *= 1.3
@@ -368,6 +370,7 @@ def follow_case(run: CaseRun, programme: LoadingProgramme, values: dict[str, flo
             trail.clear()
             kept = where.index + 1  # a crossing found in an earlier step: the points past it are dropped
             del out.points[kept:], out.stages[kept:], out.arclength[kept:]
+            on_branch = e.branch = sense_switch if what == "switch" else on_branch  # (the point left is on it)
             out.points.append(e), out.stages.append(number), out.arclength.append(s)
             if what == "<end>":
                 previous = e
