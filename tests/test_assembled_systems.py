@@ -205,3 +205,45 @@ def test_an_element_naming_a_missing_dof_is_refused():
     contacts = BranchElements(("a_b",), np.array([[0, 5]]), np.zeros((1, 2, 2)), np.zeros((1, 2)))
     with pytest.raises(ValueError, match="contact 'a_b' names a dof that does not exist"):
         AssembledSystem("mine", "test", ("x", "y"), ("Fx", "Fy"), contacts=contacts, contact_alpha0=np.zeros(1))
+
+
+def test_a_case_tells_how_far_along_its_stages_it_is(monkeypatch):
+    """Two stages of Hencky's column (P to 0.5 P1, then back to 0.2 P1): ``follow_case`` reports,
+    after every accepted step, its stage and the fraction of the stage's driven quantity covered
+    (P's own fraction, exactly: the path is straight); the fraction rises through each stage
+    and ends above 0.9 (the stage's end itself is the located target).  ``follow`` shows it on
+    its progress bar, at most every 0.5 s."""
+    from ncstab.paths import assembled_result
+
+    links = 12
+    system = assembled_column(links)
+    P1 = 4 * np.sin(np.pi / (2 * links)) ** 2
+    programme = parse_programme([{"drive": {"P": 0.5 * P1}}, {"drive": {"P": 0.2 * P1}}], system.dofs, system.forces, "P")
+    run = CaseRun(system, None, {}, PathOptions(), "activate")
+    told: list[tuple[int, float]] = []
+    out = follow_case(run, programme, {}, system.dofs, system.forces, "P", lambda *said: told.append(said))
+    assert out.status == "finished"
+    for stage in (1, 2):
+        fractions = [f for k, f in told if k == stage]
+        assert len(fractions) > 3 and np.all(np.diff(fractions) > 0) and 0.9 < fractions[-1] <= 1.0
+    ends = (0.0, 0.5 * P1, 0.2 * P1)  # each stage's start and target: (P - start) / (target - start)
+    expected = [(p.load - ends[k]) / (ends[k + 1] - ends[k]) for p, k in zip(out.points[1:], out.stages[1:])
+                if p.load not in ends]  # (a stage's end is its located target, not a step)
+    np.testing.assert_allclose([f for _, f in told], expected, rtol=1e-12)
+
+    class Bar:  # the part of tqdm the engine uses
+        postfix, updates = [], 0
+
+        def set_postfix_str(self, text):
+            self.postfix.append(text)
+
+        def update(self, n):
+            Bar.updates += n
+
+    clock = iter(np.arange(0.0, 1000.0, 0.3))
+    monkeypatch.setattr(assembled_result.time, "monotonic", lambda: float(next(clock)))
+    bar = Bar()
+    tell = assembled_result._case_progress(bar, 2, 5)
+    tell(1, 0.25)  # 0.3 s after the start: not yet
+    tell(1, 0.5)  # 0.6 s: shown
+    assert bar.postfix == ["case 3/5: stage 1, 50%"]

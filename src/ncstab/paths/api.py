@@ -337,8 +337,7 @@ def follow(
         if is_assembled(definition):
             from ncstab.paths.assembled_result import follow_assembled
 
-            return follow_assembled(model, programme, grid, values, options, study_text,
-                                    progress=bar.update if bar is not None else None)
+            return follow_assembled(model, programme, grid, values, options, study_text, progress=bar)
         for law in model.laws:
             own = {k: np.broadcast_to(np.asarray(v, dtype=float), (grid.size,)) for k, v in own_values.get(law.name, {}).items()}
             law_values = {**own, **values}

@@ -243,7 +243,9 @@ def _quiet(indicators: dict, keys) -> dict:
 
 def follow_case(run: CaseRun, programme: LoadingProgramme, values: dict[str, float], dofs, forces,
                 load_name: str | None, progress=None) -> CaseOutcome:
-    """Follow one case along ``programme``; never raises for a numerical failure (its status says it)."""
+    """Follow one case along ``programme``; never raises for a numerical failure (its status says it).
+    ``progress(stage, fraction)``, if given, is told after every accepted step how far the stage
+    (from 1) is along its driven quantity (0 at its start, 1 at its target)."""
     out = CaseOutcome(message=finished_message(len(programme.stages)))
     options = run.options
     u = np.zeros(run.n)
@@ -362,6 +364,8 @@ def follow_case(run: CaseRun, programme: LoadingProgramme, values: dict[str, flo
                 s += h
                 q.branch = on_branch
                 out.points.append(q), out.stages.append(number), out.arclength.append(s)
+                if progress is not None:  # (the fraction may leave [0, 1] on a path that turns back)
+                    progress(number + 1, (stepper.lam(q.y) - control.lam_start) / (target - control.lam_start))
                 p, t = q, q.tangent
                 h *= 1.3
                 continue
@@ -393,6 +397,4 @@ def follow_case(run: CaseRun, programme: LoadingProgramme, values: dict[str, flo
                                       ("det", "det_SS", "bordered", "hill"))
             p, t = e, e.tangent
             h = max(h * 0.5, 1e-6)
-        if progress is not None:
-            progress()
     return out

@@ -21,6 +21,8 @@ and attributes as the compiled engine's Dataset, and these differences:
 
 from __future__ import annotations
 
+import time
+
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -30,7 +32,7 @@ from ncstab.paths.assembled_control import refuse_cycles
 from ncstab.paths.assembled_engine import CaseRun
 from ncstab.paths.assembled_path import CaseOutcome, follow_case
 from ncstab.paths.options import PathOptions
-from ncstab.paths.programme import EVENTS, LoadingProgramme
+from ncstab.paths.programme import LoadingProgramme
 
 if TYPE_CHECKING:  # pragma: no cover
     import xarray
@@ -104,10 +106,29 @@ class AssembledPathResult:
         return assembled_dataset(self)
 
 
+#: Seconds between two refreshes of a case's progress on the bar (steps come faster at small n).
+PROGRESS_INTERVAL = 0.5
+
+
+def _case_progress(bar, case: int, cases: int):
+    """What a case tells the progress bar after each accepted step: its stage and how far along
+    it is, refreshed at most every :data:`PROGRESS_INTERVAL` s (a case of 10,000 dofs takes a minute)."""
+    if bar is None:
+        return None
+    last = [time.monotonic()]
+
+    def told(stage: int, fraction: float) -> None:
+        if time.monotonic() - last[0] >= PROGRESS_INTERVAL:
+            last[0] = time.monotonic()
+            bar.set_postfix_str(f"case {case + 1}/{cases}: stage {stage}, {100 * min(max(fraction, 0.0), 1.0):.0f}%")
+    return told
+
+
 def follow_assembled(model: "Model", programme: LoadingProgramme, grid: Any, values: dict[str, np.ndarray],
                      options: PathOptions, study_text: str = "", progress=None) -> AssembledPathResult:
     """Follow every law and case of ``grid`` on the assembled system of ``model`` (a cycle stage
-    is refused before any work: :func:`~ncstab.paths.assembled_control.refuse_cycles`)."""
+    is refused before any work: :func:`~ncstab.paths.assembled_control.refuse_cycles`).
+    ``progress``: a tqdm bar counting the cases, told each case's stage and how far along it is."""
     refuse_cycles(programme)
     definition = model.definition
     results = []
@@ -122,8 +143,8 @@ def follow_assembled(model: "Model", programme: LoadingProgramme, grid: Any, val
             system = definition.for_values(case_values, contact_law)
             run = CaseRun(system, contact_law, case_values, options, model.secondary_contacts)
             outcomes.append(follow_case(run, programme, case_values, definition.dofs, definition.forces,
-                                        definition.load_parameter))
+                                        definition.load_parameter, _case_progress(progress, case, grid.size)))
             if progress is not None:
-                progress(1)
+                progress.update(1)
         results.append(_LawCases(tuple(outcomes)))
     return AssembledPathResult(model, grid, programme, options, tuple(results), study_text)
