@@ -127,3 +127,23 @@ def test_a_step_failing_at_the_rounding_floor_turns_the_stage_to_the_mixed_form(
     assert outcome.status == "finished" and used
     assert outcome.points[-1].load == pytest.approx(1.2 * critical, rel=1e-12)
     assert np.abs(outcome.points[-1].u).max() > 0.5  # buckled
+
+
+@pytest.mark.parametrize("name", SYSTEMS)
+def test_the_element_forms_are_the_assembled_ks_quadratic_form(name):
+    """``energy_forms`` (the Rayleigh quotient's parts, from the same members' responses and gap
+    springs as the mixed form) against the assembled K: psi^T K phi = inner - P outer, K = K_int -
+    P K_load, for random psi and phi; the ring with a closed secondary contact.  The two are sums
+    of the same terms in another order: 1e-12 of |psi| |K| |phi|."""
+    from ncstab.operators.assembly import energy_forms
+
+    system, law, values, u, load = SYSTEMS[name]()
+    closed = [[0, 3]] if name == "ring" else None
+    run, _, point = _case(system, law, values, u, load, closed=closed)
+    rng = np.random.default_rng(3)
+    left, right = rng.normal(size=run.n), rng.normal(size=run.n)
+    K = point.state.K.toarray() if hasattr(point.state.K, "toarray") else point.state.K
+    inner, outer = energy_forms(system, law, values, u, point.internal, left, right,
+                                run.closed if closed is not None else None, run.kappa)
+    scale = np.linalg.norm(left) * np.abs(K).max() * np.linalg.norm(right) * run.n
+    assert abs(left @ K @ right - (inner - load * outer)) <= 1e-12 * scale

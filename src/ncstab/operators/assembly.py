@@ -267,13 +267,9 @@ def energy_forms(
         curvature = np.einsum("mkab,ma,mb->mk", H, left[dofs], right[dofs])
         member = np.einsum("mk,mkp,mp->m", a, D, b) + np.sum(Q * curvature, axis=1)
         inner += float(np.sum(w * member))
-    if closed is not None and len(closed):
-        springs = gap_elements(system, closed)
-        q, J, H = branch_kinematics(springs, u)
-        g = q[:, 0] - 1.0
-        a, b = np.einsum("ml,ml->m", J[:, 0], left[springs.dofs]), np.einsum("ml,ml->m", J[:, 0], right[springs.dofs])
-        curvature = np.einsum("mab,ma,mb->m", H[:, 0], left[springs.dofs], right[springs.dofs])
-        inner += springs.weight * kappa * float(np.sum(a * b + g * curvature))
+    if closed is not None and len(closed):  # each spring's own block, contracted: no assembled sum
+        dofs, _, _, blocks = gap_springs(system, closed, u, kappa)
+        inner += float(np.einsum("ma,mab,mb->", left[dofs], blocks, right[dofs]))
     if system.axial_load is not None:
         bars = system.axial_load
         r = np.einsum("bk,bk->b", bars.rise_signs, u[bars.rise_dofs])

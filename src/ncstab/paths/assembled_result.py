@@ -115,11 +115,12 @@ def _case_progress(bar, case: int, cases: int):
     it is, refreshed at most every :data:`PROGRESS_INTERVAL` s (a case of 10,000 dofs takes a minute)."""
     if bar is None:
         return None
-    last = [time.monotonic()]
+    last = time.monotonic()
 
     def told(stage: int, fraction: float) -> None:
-        if time.monotonic() - last[0] >= PROGRESS_INTERVAL:
-            last[0] = time.monotonic()
+        nonlocal last
+        if time.monotonic() - last >= PROGRESS_INTERVAL:
+            last = time.monotonic()
             bar.set_postfix_str(f"case {case + 1}/{cases}: stage {stage}, {100 * min(max(fraction, 0.0), 1.0):.0f}%")
     return told
 

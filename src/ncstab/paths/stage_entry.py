@@ -18,8 +18,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ncstab.paths.programme import BRANCH_DIMENSION, CURRENT, CycleStage, Stage
-from ncstab.paths.status import held_away, held_away_message
 from ncstab.paths.rhs import evaluate_at
+from ncstab.paths.status import held_away, held_away_message
 from ncstab.paths.tangent_field import StageArrays
 
 if TYPE_CHECKING:

@@ -36,7 +36,6 @@ from ncstab.studies.study_fields import (
     toml_type,
 )
 from ncstab.systems import SystemKind
-from ncstab.systems.assembled import is_assembled
 
 
 def stage_value(
@@ -178,7 +177,7 @@ def loading_section(
         stage, checkable = read_stage(raw, prefix, errors, references, forces)
         if not checkable:
             continue
-        if "cycle" in stage and is_assembled(definition):
+        if "cycle" in stage and _is_assembled(definition):
             from ncstab.paths.assembled_control import CYCLE_REFUSED
 
             errors.add(f"{prefix}.cycle", f"{CYCLE_REFUSED}; system {definition.name!r} has {definition.n_dof} dofs")
@@ -378,3 +377,11 @@ def check_stages_do_something(
             f"drives {name} to {extent.start[name]:g}, the value it already has ({where}){others}: the study "
             "would compute nothing; give another target",
         )
+
+
+def _is_assembled(definition: Any) -> bool:
+    """Whether the system is assembled from elements (imported here: the 28 ms of the elements'
+    modules are paid only by a study that has such a system, which imported them already)."""
+    from ncstab.systems.assembled import is_assembled
+
+    return is_assembled(definition)
