@@ -90,9 +90,12 @@ from ncstab.studies.streaming import (
     encode_chunk,
 )
 from ncstab.studies.study import Study
+from ncstab.systems.assembled import is_assembled
 
 if TYPE_CHECKING:  # pragma: no cover
     import xarray as xr
+
+    from ncstab.paths.assembled_result import AssembledPathResult
 
 __all__ = [
     "DEFAULT_CHUNK_CASES",
@@ -132,13 +135,19 @@ def run_chunk(study: Study, law: str, start: int, stop: int) -> "xr.Dataset":
     return study_dataset(study, chunk_path(study, law, start, stop))
 
 
-def chunk_path(study: Study, law: str | None, start: int, stop: int) -> PathResult:
+def chunk_path(study: Study, law: str | None, start: int, stop: int) -> "PathResult | AssembledPathResult":
     """The followed paths of the cases ``start:stop`` of one law (``None``: a system with its own
-    laws) (grid: a :class:`CaseRange`)."""
+    laws) (grid: a :class:`CaseRange`), on the engine an in-process run chooses for the system:
+    the sparse engine for an assembled system
+    (:func:`~ncstab.paths.assembled_result.follow_assembled`), else the compiled batch."""
     whole = ParameterGrid.from_mapping(study.parameters)
     grid = CaseRange(whole, start, stop)
     values = grid.case_values()
     model = study.model(law)
+    if is_assembled(model.definition):
+        from ncstab.paths.assembled_result import follow_assembled
+
+        return follow_assembled(model, study.programme, grid, values, study.options, study.text)
     batch = case_batch(model.laws[0], model, values, grid.size)
     result = follow_cases(batch, study.programme, values, study.options, model.secondary_contacts,
                           study_cases=whole.size)
