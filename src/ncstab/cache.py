@@ -79,6 +79,21 @@ def cache_root() -> Path:
     return base / "ncstab"
 
 
+def unusable_cache(kind: str = "compiled") -> str | None:
+    """Why ``<root>/<kind>`` cannot hold a cache (None: it can): a path on the way that is a
+    file, or a folder that cannot be created or written.  Creates the folder if it can."""
+    folder = cache_root() / kind
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        return f"{folder}: a file on the way is not a folder (NCSTAB_CACHE_DIR={cache_root()})"
+    except OSError as error:
+        return f"cannot create the cache folder {folder}: {error.strerror or error}"
+    if not os.access(folder, os.W_OK | os.X_OK):
+        return f"cannot write into the cache folder {folder}"
+    return None
+
+
 def cache_directory(kind: str) -> Path:
     """The folder of one cache: ``<root>/<kind>`` (:func:`cache_root`).
 

@@ -86,9 +86,13 @@ def _compile(processes: int | None) -> int:
     or a :class:`~ncstab.studies.errors.RunError` (exit code 3) naming what failed."""
     import os
 
-    from ncstab.cache import cache_root
+    from ncstab.cache import cache_root, unusable_cache
     from ncstab.engine_warmup import ENGINE_ITEMS, compile_loops, groups_by_model
     from ncstab.studies.errors import RunError
+
+    reason = unusable_cache("compiled")
+    if reason is not None:  # before any work: nothing compiled could be kept
+        raise RunError(f"nothing can be cached: {reason}", kept="nothing was compiled")
 
     if processes is None:
         processes = min(2, os.cpu_count() or 1)

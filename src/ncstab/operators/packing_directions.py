@@ -51,7 +51,7 @@ import numpy as np
 from ncstab.studies.errors import InvalidInputError
 
 __all__ = ["Directions", "DirectionsError", "PlaneCone", "cone_planes", "direction_work", "directions_from",
-           "plane_basis", "plane_cone", "read_directions", "resolve_planes"]
+           "MAX_DIRECTIONS", "plane_basis", "plane_cone", "read_directions", "resolve_planes"]
 
 #: A second direction whose part orthogonal to the first is below this share of its norm spans no plane with it.
 PARALLEL_TOLERANCE = 1e-10
@@ -95,6 +95,41 @@ def _component(packing, name: str, where: str) -> int:
     return int(index)
 
 
+#: The most directions one file may hold (a CSV's data lines, a ``.npy``'s rows): each is a
+#: row over all free dofs, and reading a CSV costs about 0.1 ms a line.
+MAX_DIRECTIONS = 10_000
+
+
+def _too_many(path: Path, rows: int) -> DirectionsError:
+    return DirectionsError(f"{path}: {rows} directions, more than the limit of {MAX_DIRECTIONS} a file "
+                           "(docs/when-things-go-wrong.md, Limits)")
+
+
+def _npy_directions(path: Path, packing) -> Directions:
+    """A ``.npy`` array: its header is checked (real numbers, at most :data:`MAX_DIRECTIONS` rows)
+    before any allocation."""
+    try:
+        with path.open("rb") as handle:
+            version = np.lib.format.read_magic(handle)
+            read_header = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                           else np.lib.format.read_array_header_2_0)
+            shape, _, dtype = read_header(handle)
+    except (OSError, ValueError) as error:
+        raise DirectionsError(f"{path}: not a readable .npy array ({error})") from None
+    if dtype.kind not in "fiub":
+        raise DirectionsError(f"{path}: an array of {dtype} (directions are real numbers: float or integer)")
+    if len(shape) >= 1 and shape[0] > MAX_DIRECTIONS:
+        raise _too_many(path, int(shape[0]))
+    if int(np.prod(shape, dtype=float)) > MAX_DIRECTIONS * max(packing.n_dof, 1):
+        raise DirectionsError(f"{path}: has shape {shape}; directions are rows over the free dofs, "
+                              f"(p, {packing.n_dof})")
+    try:
+        array = np.load(path, allow_pickle=False)
+    except (OSError, ValueError) as error:
+        raise DirectionsError(f"{path}: not a readable .npy array ({error})") from None
+    return _checked_array(array, packing, str(path))
+
+
 def _csv_directions(path: Path, packing) -> Directions:
     """A CSV file: a header of dof names (and optionally ``name``), one direction a line; ``#`` lines skipped."""
     try:
@@ -121,6 +156,8 @@ def _csv_directions(path: Path, packing) -> Directions:
         raise DirectionsError(f"{path}: line {header_line}: the header names no dof (x<i>, y<i>, theta<i>)")
     if len(lines) == 1:
         raise DirectionsError(f"{path}: no direction after the header (line {header_line})")
+    if len(lines) - 1 > MAX_DIRECTIONS:
+        raise _too_many(path, len(lines) - 1)
     vectors = np.zeros((len(lines) - 1, packing.n_dof))
     names = []
     for row, (number, cells) in enumerate(lines[1:]):
@@ -153,6 +190,8 @@ def _check_names(names: list[str], source: Any) -> None:
 
 def _checked_array(array: Any, packing, source: str, names: list[str] | None = None) -> Directions:
     """Rows over all free dofs: the right length, finite, not zero."""
+    if np.iscomplexobj(array):
+        raise DirectionsError(f"{source}: complex numbers (directions are real)")
     try:
         vectors = np.array(array, dtype=float, ndmin=2)
     except (TypeError, ValueError) as error:
@@ -192,11 +231,7 @@ def read_directions(path: str | os.PathLike[str], packing) -> Directions:
     if suffix == ".csv":
         return _csv_directions(path, packing)
     if suffix == ".npy":
-        try:
-            array = np.load(path, allow_pickle=False)
-        except (OSError, ValueError) as error:
-            raise DirectionsError(f"{path}: not a readable .npy array ({error})") from None
-        return _checked_array(array, packing, str(path))
+        return _npy_directions(path, packing)
     raise DirectionsError(f"--directions: {path}: not a .csv or .npy file")
 
 

@@ -34,6 +34,7 @@ and YADE were not run.
 from __future__ import annotations
 
 import io
+import stat
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -59,16 +60,13 @@ def read_dump(path: str | Path, item: str = "ATOMS", timestep: int | None = None
     ``item`` is ``"ATOMS"`` (``dump atom/custom``) or ``"ENTRIES"`` (``dump local``).
     """
     path = Path(path)
-    try:
-        lines = path.read_text().splitlines()
-    except OSError as error:
-        raise PackingError(f"cannot read {path}: {error}") from None
+    lines = read_text(path).splitlines()
     starts = [i for i, line in enumerate(lines) if line.startswith("ITEM: TIMESTEP")]
     if not starts:
         raise PackingError(f"{path}: not a LAMMPS dump (no 'ITEM: TIMESTEP' line)")
     chosen = starts[-1]
     if timestep is not None:
-        found = [i for i in starts if int(lines[i + 1].split()[0]) == timestep]
+        found = [i for i in starts if _timestep(lines, i, path) == timestep]
         if not found:
             raise PackingError(f"{path}: no snapshot at timestep {timestep}")
         chosen = found[0]
@@ -77,11 +75,51 @@ def read_dump(path: str | Path, item: str = "ATOMS", timestep: int | None = None
     if header is None:
         raise PackingError(f"{path}: the snapshot has no 'ITEM: {item}' section")
     names = lines[header].split()[2:]
-    body = "\n".join(lines[header + 1:end])
-    table = np.loadtxt(io.StringIO(body), ndmin=2) if body.strip() else np.zeros((0, len(names)))
-    if table.shape[1] != len(names):
-        raise PackingError(f"{path}: {table.shape[1]} columns for the {len(names)} names of 'ITEM: {item}'")
+    table = numbers(path, [(k + 1, lines[k]) for k in range(header + 1, end) if lines[k].strip()], len(names), None)
     return names, table
+
+
+def read_text(path: Path) -> str:
+    """The text of a regular file, UTF-8; anything else (a fifo, a device, a folder, bytes that are
+    not UTF-8) raises :class:`PackingError` naming the file (a fifo would block the read forever)."""
+    try:
+        if not stat.S_ISREG(path.stat().st_mode):
+            raise PackingError(f"{path}: not a regular file (a fifo, device or folder cannot be read as a packing)")
+        return path.read_bytes().decode("utf-8")
+    except OSError as error:
+        raise PackingError(f"cannot read {path}: {error}") from None
+    except UnicodeDecodeError as error:
+        line = path.read_bytes()[:error.start].count(b"\n") + 1
+        raise PackingError(f"{path}: line {line} is not UTF-8 text (a binary file?)") from None
+
+
+def numbers(path: Path, numbered: list[tuple[int, str]], width: int, delimiter: str | None) -> np.ndarray:
+    """The (len(numbered), width) table of numbers in the lines ``numbered`` ((line number, text)
+    pairs, blank lines left out); a line that is not ``width`` numbers raises
+    :class:`PackingError` naming the file and the line."""
+    if not numbered:
+        return np.zeros((0, width))
+    try:
+        table = np.loadtxt(io.StringIO("\n".join(line for _, line in numbered)), delimiter=delimiter, ndmin=2)
+        if table.shape[1] == width:
+            return table
+    except ValueError:
+        pass
+    for number, line in numbered:  # the error path only: find the line to name
+        try:
+            values = [float(field) for field in line.split(delimiter)]
+        except ValueError:
+            raise PackingError(f"{path}: line {number} is not {width} numbers: {line.strip()[:60]!r}") from None
+        if len(values) != width:
+            raise PackingError(f"{path}: line {number} has {len(values)} values for the {width} names of the header")
+    raise PackingError(f"{path}: not a table of {width} numbers")
+
+
+def _timestep(lines: list[str], start: int, path: Path) -> int:
+    try:
+        return int(lines[start + 1].split()[0])
+    except (IndexError, ValueError):
+        raise PackingError(f"{path}: line {start + 2} should hold the timestep of 'ITEM: TIMESTEP'") from None
 
 
 def _column(names: list[str], table: np.ndarray, key: int | str, path: Path) -> np.ndarray:
@@ -112,10 +150,12 @@ def packing_from_arrays(ids: np.ndarray, x: np.ndarray, y: np.ndarray, radius: n
         The DEM's normal stiffness (force per length): forces are divided by kn d.
     """
     radius = np.asarray(radius, dtype=float)
+    if len(radius) == 0:
+        raise PackingError(f"{source}: no grains (a table with a header and no rows?)")
+    ids = _integers(ids, source, "grain id")
     d = 2 * float(np.mean(radius))
     x, y = np.asarray(x, float) / d, np.asarray(y, float) / d
     radius = radius / d
-    ids = np.asarray(ids).astype(np.int64)
     order = np.argsort(ids, kind="stable")
     if len(ids) > 1 and np.any(ids[order][1:] == ids[order][:-1]):
         raise PackingError(f"{source}: grain id {ids[order][1:][ids[order][1:] == ids[order][:-1]][0]} appears twice")
@@ -123,7 +163,7 @@ def packing_from_arrays(ids: np.ndarray, x: np.ndarray, y: np.ndarray, radius: n
         contacts = contacts_from_geometry(x, y, radius)
         force = np.zeros((len(contacts), 2))
     else:
-        pairs = np.asarray(pairs).astype(np.int64)
+        pairs = _integers(pairs, source, "contact's grain id")
         position = np.searchsorted(ids[order], pairs.ravel())
         position = np.minimum(position, len(ids) - 1)
         known = ids[order][position] == pairs.ravel()
@@ -146,6 +186,16 @@ def packing_from_arrays(ids: np.ndarray, x: np.ndarray, y: np.ndarray, radius: n
     return validate({"x": x, "y": y, "radius": radius, "fixed": np.asarray(fixed, dtype=float),
                      "grain_a": a, "grain_b": b, "normal_force": np.sum(force * n, axis=1) / scale,
                      "tangential_force": -np.sum(force * t, axis=1) / scale}, source)
+
+
+def _integers(values, source: str, what: str) -> np.ndarray:
+    """``values`` as int64; a value that is not an integer (1.5, nan, 1e300) raises PackingError."""
+    values = np.asarray(values)
+    if values.dtype.kind == "f":
+        bad = ~np.isfinite(values) | (values != np.round(values)) | (np.abs(values) > 2.0 ** 53)
+        if bad.any():
+            raise PackingError(f"{source}: {what} {float(values.ravel()[np.flatnonzero(bad.ravel())[0]]):g} is not an integer")
+    return values.astype(np.int64)
 
 
 def _fixed(ids: np.ndarray, types: np.ndarray | None, fixed_types: Sequence[int], fixed_ids: Sequence[int]):
@@ -205,10 +255,7 @@ def read_yade(path: str | Path, kn: float = 1.0) -> Packing:
     force of id1 on id2); ``#`` starts a comment.
     """
     path = Path(path)
-    try:
-        lines = [line.split("#", 1)[0].split() for line in path.read_text().splitlines()]
-    except OSError as error:
-        raise PackingError(f"cannot read {path}: {error}") from None
+    lines = [line.split("#", 1)[0].split() for line in read_text(path).splitlines()]
     bodies = [row[1:] for row in lines if row and row[0] == "B"]
     interactions = [row[1:] for row in lines if row and row[0] == "I"]
     unknown = next((k for k, row in enumerate(lines) if row and row[0] not in ("B", "I")), None)
@@ -253,19 +300,10 @@ def read_csv(grains: str | Path, contacts: str | Path | None = None, kn: float =
 
 
 def _read_table(path: Path) -> dict[str, np.ndarray]:
-    try:
-        text = path.read_text()
-    except OSError as error:
-        raise PackingError(f"cannot read {path}: {error}") from None
-    lines = [line for line in text.splitlines() if line.strip() and not line.lstrip().startswith("#")]
-    if not lines:
+    numbered = [(k + 1, line) for k, line in enumerate(read_text(path).splitlines())
+                if line.strip() and not line.lstrip().startswith("#")]
+    if not numbered:
         return {}
-    names = [name.strip() for name in lines[0].split(",")]
-    try:
-        data = np.loadtxt(io.StringIO("\n".join(lines[1:])), delimiter=",", ndmin=2) if len(lines) > 1 else \
-            np.zeros((0, len(names)))
-    except ValueError as error:
-        raise PackingError(f"{path}: not a numeric CSV table ({error})") from None
-    if data.shape[1] != len(names):
-        raise PackingError(f"{path}: {data.shape[1]} columns for the {len(names)} names of the header")
+    names = [name.strip() for name in numbered[0][1].split(",")]
+    data = numbers(path, numbered[1:], len(names), ",")
     return {name: data[:, k] for k, name in enumerate(names)}
