@@ -109,7 +109,8 @@ def test_a_free_grain_on_a_held_one_against_its_closed_form(law: str) -> None:
     gamma = 0.1
     K = _two_grain_K(law, gamma)
     directions = {"x": [1, 0, 0], "theta": [0, 0, 1], "xy": [1, 1, 0], "x_theta": [2, 0, -3], "y": [0, 1, 0]}
-    ds = ncstab.analyse(_two_grains(), law, gamma, modes=3, directions=directions, cone_planes=["x,y"])
+    ds = ncstab.analyse(_two_grains(), law, gamma, modes=3, directions=directions, cone_planes=["x,y"],
+                        keep_rattlers=True)  # one contact: a rattler, kept for its closed form
     assert np.allclose(_archived_K(ds).toarray(), K, rtol=0, atol=1e-12)
     for name, d in directions.items():
         d = np.asarray(d, float)
@@ -210,7 +211,7 @@ def test_malformed_directions_are_exit_2_naming_the_file_and_entry(tmp_path, mon
     else:
         (tmp_path / file).write_text(text)
     before = sorted(p.name for p in tmp_path.iterdir())
-    assert main(["analyse", "p.nc", "--law", "mcnamara", "--directions", file, *option]) == 2
+    assert main(["analyse", "p.nc", "--law", "mcnamara", "--keep-rattlers", "--directions", file, *option]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "Traceback" not in err
     assert all(word in err for word in words), err
@@ -230,10 +231,10 @@ def test_missing_directions_and_a_plane_without_them_are_exit_2(tmp_path, monkey
 def test_the_python_api_refuses_malformed_arrays_naming_the_entry() -> None:
     packing = _two_grains()
     with pytest.raises(DirectionsError, match="rows of length 2, but the packing has 3 free dofs"):
-        ncstab.analyse(packing, "mcnamara", directions=np.ones((1, 2)))
+        ncstab.analyse(packing, "mcnamara", keep_rattlers=True, directions=np.ones((1, 2)))
     with pytest.raises(DirectionsError, match=r"entry \[0, 2\] \(dof theta1\) is nan"):
-        ncstab.analyse(packing, "mcnamara", directions=[1.0, 0.0, np.nan])
+        ncstab.analyse(packing, "mcnamara", keep_rattlers=True, directions=[1.0, 0.0, np.nan])
     with pytest.raises(DirectionsError, match="'b' has 2 entries"):
-        ncstab.analyse(packing, "mcnamara", directions={"a": [1, 0, 0], "b": [1, 0]})
-    ds = ncstab.analyse(packing, "mcnamara", directions=[0.0, 2.0, 0.0])  # one direction, (n,)
+        ncstab.analyse(packing, "mcnamara", keep_rattlers=True, directions={"a": [1, 0, 0], "b": [1, 0]})
+    ds = ncstab.analyse(packing, "mcnamara", keep_rattlers=True, directions=[0.0, 2.0, 0.0])  # one direction, (n,)
     assert list(ds.direction.values) == ["0"] and float(ds.direction_d2W[0]) == pytest.approx(1.0, abs=1e-12)

@@ -44,7 +44,7 @@ def _law(name: str):
 
 def analyse(packing: Any, law: str | Any = "mcnamara", gamma: float = 1.0, modes: int = 6,
             output: str | os.PathLike[str] | None = None, loops: bool = False, directions: Any = None,
-            cone_planes: Any = ()):
+            cone_planes: Any = (), keep_rattlers: bool = False):
     """Analyse a packing: the archive of ``ncstab analyse`` as an ``xarray.Dataset``.
 
     Parameters
@@ -75,6 +75,9 @@ def analyse(packing: Any, law: str | Any = "mcnamara", gamma: float = 1.0, modes
         the exact unstable cone in each pair's plane, after the plane of the
         two softest modes of K_sym, which is always given (``cone_width``,
         ``cone_lower``, ``cone_upper`` along ``plane``).
+    keep_rattlers
+        Keep the rattlers in K (default: held, their contacts removed;
+        :mod:`ncstab.operators.rattlers`); ``rattler`` and ``rattlers`` say which.
 
     Raises
     ------
@@ -89,6 +92,7 @@ def analyse(packing: Any, law: str | Any = "mcnamara", gamma: float = 1.0, modes
     from ncstab.operators.packing_analysis import analyse_packing
     from ncstab.operators.packing_directions import cone_planes as cone_planes_of
     from ncstab.operators.packing_directions import directions_from, resolve_planes
+    from ncstab.operators.rattlers import rattler_mask, without_rattlers
     from ncstab.studies.errors import InvalidInputError
     from ncstab.systems.packing import Packing, read_packing
 
@@ -97,7 +101,9 @@ def analyse(packing: Any, law: str | Any = "mcnamara", gamma: float = 1.0, modes
     if int(modes) < 0:
         raise InvalidInputError(f"--modes: {modes!r} is negative")
     definition = _law(law) if isinstance(law, str) else law
-    value = packing if isinstance(packing, Packing) else read_packing(packing)
+    original = packing if isinstance(packing, Packing) else read_packing(packing)
+    rattler = rattler_mask(original)
+    value = original if keep_rattlers or not rattler.any() else without_rattlers(original, rattler)
     given = None if directions is None else directions_from(directions, value)
     planes = resolve_planes([cone_planes] if isinstance(cone_planes, str) else cone_planes or (), given)
     result = analyse_packing(value, definition, float(gamma), max(int(modes), 2))  # the cone's plane: 2 modes
@@ -106,6 +112,8 @@ def analyse(packing: Any, law: str | Any = "mcnamara", gamma: float = 1.0, modes
                      participation=result.participation[:int(modes)])
     dataset = analysis_dataset(value, result, definition.name, float(gamma))
     dataset = dataset.merge(direction_variables(value, result, given, cones))
+    dataset = dataset.merge(sample_variables(original, rattler, keep_rattlers))
+    dataset["fixed"] = dataset.fixed.copy(data=original.fixed.astype(np.int8))  # as given (rattlers: `rattler`)
     if loops:
         dataset = dataset.merge(loop_variables(value, result))
     if output is not None:
@@ -176,6 +184,8 @@ def analysis_dataset(packing, result, law_name: str, gamma: float):
             "R = sum_c rho^2 J^T Q* over the free dofs: equal to the applied loads at an equilibrium")),
         "dof_grain": (("dof",), np.repeat(free, 3).astype(np.int32), _attrs("1", "grain of the dof",
                                                                             "0-based grain index of each free dof")),
+        "dof_name": (("dof",), np.array(packing.dof_names(), dtype=str), _attrs(
+            "1", "name of the dof", "x<i>, y<i>, theta<i> (i the 0-based grain) of each free dof, in K's order")),
         **grain_vars, **contact_vars,
     }
     coords = {"component": ("component", np.array(["x", "y", "theta"]), _attrs(
@@ -187,6 +197,32 @@ def analysis_dataset(packing, result, law_name: str, gamma: float):
                           "ncstab_version": ncstab.__version__,
                           "source": "ncstab analyse (docs/packings.md)"})
     return dataset
+
+
+def sample_variables(packing, rattler, kept: bool):
+    """The sample's variables: ``stress`` (Love-Weber, every contact of ``packing``), ``rattler``, ``rattlers``."""
+    import numpy as np
+    import xarray as xr
+
+    from ncstab.operators.packing_stress import love_weber_stress
+    from ncstab.operators.rattlers import RATTLER_TOLERANCE
+
+    stress = love_weber_stress(packing)
+    rule = (f"a free grain with fewer than two force-carrying contacts (N > {RATTLER_TOLERANCE:g} max N), removed "
+            "recursively; none where no contact is compressed")
+    xyz = ("xyz", np.array(["x", "y"]), _attrs("1", "axis", "x, y"))
+    return xr.Dataset({
+        "stress": (("xyz", "xyz_column"), stress.stress, _attrs(
+            "k_n", "Love-Weber stress", "sigma_ij = (1/V) sum_c f_i l_j, f the force of grain a on grain b "
+            "(N n - T t), l = x_b - x_a, over every contact of the packing (rattlers' included): compression "
+            "positive; per unit thickness", volume=stress.volume, volume_rule=stress.volume_rule)),
+        "rattler": (("grain",), rattler.astype(np.int8), _attrs(
+            "1", "rattler", f"1: {rule}; " + ("kept in K (--keep-rattlers)" if kept else
+                                              "held and its contacts removed from K"),
+            tolerance=RATTLER_TOLERANCE, kept=int(kept))),
+        "rattlers": ((), np.int32(rattler.sum()), _attrs("1", "number of rattlers", rule,
+                                                         tolerance=RATTLER_TOLERANCE, kept=int(kept))),
+    }, coords={"xyz": xyz, "xyz_column": ("xyz_column", *xyz[1:])})
 
 
 def direction_variables(packing, result, directions, cones):
@@ -289,7 +325,8 @@ def command_analyse(args: argparse.Namespace) -> int:
     output = Path(args.output) if args.output else default_analysis_path(args.packing)
     try:
         dataset = analyse(args.packing, args.law, args.gamma, args.modes, output=output, loops=args.loops,
-                          directions=args.directions, cone_planes=args.cone_plane or ())
+                          directions=args.directions, cone_planes=args.cone_plane or (),
+                          keep_rattlers=args.keep_rattlers)
     except np.linalg.LinAlgError as error:
         from ncstab.studies.errors import RunError
 
@@ -302,7 +339,8 @@ def command_analyse(args: argparse.Namespace) -> int:
                            "nothing was written") from None
         raise
     print(f"{output}: hill = {float(dataset.hill):.6g}, negative eigenvalues = {int(dataset.negative_eigenvalues)}, "
-          f"zero eigenvalues = {int(dataset.zero_eigenvalues)}, sign det K = {int(dataset.det_K_sign)}")
+          f"zero eigenvalues = {int(dataset.zero_eigenvalues)}, sign det K = {int(dataset.det_K_sign)}, "
+          f"rattlers = {int(dataset.rattlers)}{' (kept)' if args.keep_rattlers else ''}")
     if "direction" in dataset.sizes:
         work = dataset.direction_d2W.values
         print(f"{len(work)} directions: d2W from {work.min():.6g} to {work.max():.6g}, "
@@ -344,6 +382,9 @@ def add_analyse_parser(sub, parents: list) -> None:
     parser.add_argument("--cone-plane", action="append", metavar="A,B",
                         help="also the exact unstable cone in the plane of two --directions (names or 0-based rows); "
                         "repeatable (the plane of the two softest modes of K_sym is always given)")
+    parser.add_argument("--keep-rattlers", action="store_true",
+                        help="keep the rattlers (free grains with fewer than two force-carrying contacts, found "
+                        "recursively) in K; by default they are held and their contacts removed")
     parser.add_argument("-o", "--output", metavar="OUT.nc",
                         help="archive path (default results/<packing stem>_analysis.nc)")
     parser.set_defaults(handler=command_analyse)
