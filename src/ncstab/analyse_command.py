@@ -44,7 +44,7 @@ def _law(name: str):
 
 def analyse(packing: Any, law: str | Any = "mcnamara", gamma: float = 1.0, modes: int = 6,
             output: str | os.PathLike[str] | None = None, loops: bool = False, directions: Any = None,
-            cone_planes: Any = ()):
+            cone_planes: Any = (), friction: float | None = None, probe: Any = None):
     """Analyse a packing: the archive of ``ncstab analyse`` as an ``xarray.Dataset``.
 
     Parameters
@@ -75,6 +75,12 @@ def analyse(packing: Any, law: str | Any = "mcnamara", gamma: float = 1.0, modes
         the exact unstable cone in each pair's plane, after the plane of the
         two softest modes of K_sym, which is always given (``cone_width``,
         ``cone_lower``, ``cone_upper`` along ``plane``).
+    friction
+        The Coulomb ratio mu, over the packing's ``friction`` (docs/friction.md); with
+        either, ``contact_state``, the consistent ``hill``, ``hill_direction``, ``hill_sticking``.
+    probe
+        Prescribed dof increments, ``"x3=1e-4,y3=0"`` or {name: value}: ``probe_du``, ``probe_dF``,
+        ``probe_contact_state`` (:mod:`ncstab.operators.incremental_probe`).
 
     Raises
     ------
@@ -99,6 +105,11 @@ def analyse(packing: Any, law: str | Any = "mcnamara", gamma: float = 1.0, modes
     definition = _law(law) if isinstance(law, str) else law
     value = packing if isinstance(packing, Packing) else read_packing(packing)
     given = None if directions is None else directions_from(directions, value)
+    from ncstab.operators.friction_variables import friction_variables, parse_probe
+    from ncstab.systems.packing import validate_friction
+
+    mu = value.friction if friction is None else validate_friction(friction, value.n_contacts, name="--friction")
+    probed = None if probe is None else parse_probe(probe, value.dof_names())
     planes = resolve_planes([cone_planes] if isinstance(cone_planes, str) else cone_planes or (), given)
     result = analyse_packing(value, definition, float(gamma), max(int(modes), 2))  # the cone's plane: 2 modes
     cones = cone_planes_of(result.tangent.K, result.modes[:2], planes)
@@ -108,6 +119,8 @@ def analyse(packing: Any, law: str | Any = "mcnamara", gamma: float = 1.0, modes
     dataset = dataset.merge(direction_variables(value, result, given, cones))
     if loops:
         dataset = dataset.merge(loop_variables(value, result))
+    if mu is not None or probed is not None:
+        dataset.update(friction_variables(value, result.tangent, mu, probed))
     if output is not None:
         write_analysis(dataset, output)
     return dataset
@@ -289,7 +302,8 @@ def command_analyse(args: argparse.Namespace) -> int:
     output = Path(args.output) if args.output else default_analysis_path(args.packing)
     try:
         dataset = analyse(args.packing, args.law, args.gamma, args.modes, output=output, loops=args.loops,
-                          directions=args.directions, cone_planes=args.cone_plane or ())
+                          directions=args.directions, cone_planes=args.cone_plane or (), friction=args.friction,
+                          probe=args.probe)
     except np.linalg.LinAlgError as error:
         from ncstab.studies.errors import RunError
 
@@ -303,6 +317,13 @@ def command_analyse(args: argparse.Namespace) -> int:
         raise
     print(f"{output}: hill = {float(dataset.hill):.6g}, negative eigenvalues = {int(dataset.negative_eigenvalues)}, "
           f"zero eigenvalues = {int(dataset.zero_eigenvalues)}, sign det K = {int(dataset.det_K_sign)}")
+    if "contact_state" in dataset:
+        print(f"friction: {int(dataset.sliding_contacts)} sliding, {int(dataset.open_contacts)} open contacts; "
+              f"hill = {float(dataset.hill):.6g} on the consistent branch, hill_sticking = "
+              f"{float(dataset.hill_sticking):.6g}")
+    if "probe_du" in dataset:
+        print(f"probe: {int((dataset.probe_contact_state == 1).sum())} contacts slide, "
+              f"{int((dataset.probe_contact_state == 2).sum())} open ({dataset.probe_dF.attrs['method']})")
     if "direction" in dataset.sizes:
         work = dataset.direction_d2W.values
         print(f"{len(work)} directions: d2W from {work.min():.6g} to {work.max():.6g}, "
@@ -344,6 +365,12 @@ def add_analyse_parser(sub, parents: list) -> None:
     parser.add_argument("--cone-plane", action="append", metavar="A,B",
                         help="also the exact unstable cone in the plane of two --directions (names or 0-based rows); "
                         "repeatable (the plane of the two softest modes of K_sym is always given)")
+    parser.add_argument("--friction", type=float, metavar="MU",
+                        help="Coulomb ratio mu of every contact (over the packing's 'friction'): contacts at the "
+                        "limit slide or unload, open ones separate; Hill on the consistent branch (docs/friction.md)")
+    parser.add_argument("--probe", metavar="DOF=VALUE[,DOF=VALUE...]",
+                        help="the incremental response to these dof increments, every other free dof at constant "
+                        "force, each contact on its consistent branch (docs/friction.md)")
     parser.add_argument("-o", "--output", metavar="OUT.nc",
                         help="archive path (default results/<packing stem>_analysis.nc)")
     parser.set_defaults(handler=command_analyse)
