@@ -44,7 +44,8 @@ def _law(name: str):
 
 def analyse(packing: Any, law: str | Any = "mcnamara", gamma: float = 1.0, modes: int = 6,
             output: str | os.PathLike[str] | None = None, loops: bool = False, directions: Any = None,
-            cone_planes: Any = (), keep_rattlers: bool = False):
+            cone_planes: Any = (), keep_rattlers: bool = False, friction: float | None = None,
+            probe: Any = None):
     """Analyse a packing: the archive of ``ncstab analyse`` as an ``xarray.Dataset``.
 
     Parameters
@@ -78,6 +79,12 @@ def analyse(packing: Any, law: str | Any = "mcnamara", gamma: float = 1.0, modes
     keep_rattlers
         Keep the rattlers in K (default: held, their contacts removed;
         :mod:`ncstab.operators.rattlers`); ``rattler`` and ``rattlers`` say which.
+    friction
+        The Coulomb ratio mu, over the packing's ``friction`` (docs/friction.md); with
+        either, ``contact_state``, the consistent ``hill``, ``hill_direction``, ``hill_sticking``.
+    probe
+        Prescribed dof increments, ``"x3=1e-4,y3=0"`` or {name: value}: ``probe_du``, ``probe_dF``,
+        ``probe_contact_state`` (:mod:`ncstab.operators.incremental_probe`).
 
     Raises
     ------
@@ -105,6 +112,11 @@ def analyse(packing: Any, law: str | Any = "mcnamara", gamma: float = 1.0, modes
     rattler = rattler_mask(original)
     value = original if keep_rattlers or not rattler.any() else without_rattlers(original, rattler)
     given = None if directions is None else directions_from(directions, value)
+    from ncstab.operators.friction_variables import friction_variables, parse_probe
+    from ncstab.systems.packing import validate_friction
+
+    mu = value.friction if friction is None else validate_friction(friction, value.n_contacts, name="--friction")
+    probed = None if probe is None else parse_probe(probe, value.dof_names())
     planes = resolve_planes([cone_planes] if isinstance(cone_planes, str) else cone_planes or (), given)
     result = analyse_packing(value, definition, float(gamma), max(int(modes), 2))  # the cone's plane: 2 modes
     cones = cone_planes_of(result.tangent.K, result.modes[:2], planes)
@@ -116,6 +128,8 @@ def analyse(packing: Any, law: str | Any = "mcnamara", gamma: float = 1.0, modes
     dataset["fixed"] = dataset.fixed.copy(data=original.fixed.astype(np.int8))  # as given (rattlers: `rattler`)
     if loops:
         dataset = dataset.merge(loop_variables(value, result))
+    if mu is not None or probed is not None:
+        dataset.update(friction_variables(value, result.tangent, mu, probed))
     if output is not None:
         write_analysis(dataset, output)
     return dataset
@@ -326,7 +340,7 @@ def command_analyse(args: argparse.Namespace) -> int:
     try:
         dataset = analyse(args.packing, args.law, args.gamma, args.modes, output=output, loops=args.loops,
                           directions=args.directions, cone_planes=args.cone_plane or (),
-                          keep_rattlers=args.keep_rattlers)
+                          keep_rattlers=args.keep_rattlers, friction=args.friction, probe=args.probe)
     except np.linalg.LinAlgError as error:
         from ncstab.studies.errors import RunError
 
@@ -341,6 +355,13 @@ def command_analyse(args: argparse.Namespace) -> int:
     print(f"{output}: hill = {float(dataset.hill):.6g}, negative eigenvalues = {int(dataset.negative_eigenvalues)}, "
           f"zero eigenvalues = {int(dataset.zero_eigenvalues)}, sign det K = {int(dataset.det_K_sign)}, "
           f"rattlers = {int(dataset.rattlers)}{' (kept)' if args.keep_rattlers else ''}")
+    if "contact_state" in dataset:
+        print(f"friction: {int(dataset.sliding_contacts)} sliding, {int(dataset.open_contacts)} open contacts; "
+              f"hill = {float(dataset.hill):.6g} on the consistent branch, hill_sticking = "
+              f"{float(dataset.hill_sticking):.6g}")
+    if "probe_du" in dataset:
+        print(f"probe: {int((dataset.probe_contact_state == 1).sum())} contacts slide, "
+              f"{int((dataset.probe_contact_state == 2).sum())} open ({dataset.probe_dF.attrs['method']})")
     if "direction" in dataset.sizes:
         work = dataset.direction_d2W.values
         print(f"{len(work)} directions: d2W from {work.min():.6g} to {work.max():.6g}, "
@@ -385,6 +406,12 @@ def add_analyse_parser(sub, parents: list) -> None:
     parser.add_argument("--keep-rattlers", action="store_true",
                         help="keep the rattlers (free grains with fewer than two force-carrying contacts, found "
                         "recursively) in K; by default they are held and their contacts removed")
+    parser.add_argument("--friction", type=float, metavar="MU",
+                        help="Coulomb ratio mu of every contact (over the packing's 'friction'): contacts at the "
+                        "limit slide or unload, open ones separate; Hill on the consistent branch (docs/friction.md)")
+    parser.add_argument("--probe", metavar="DOF=VALUE[,DOF=VALUE...]",
+                        help="the incremental response to these dof increments, every other free dof at constant "
+                        "force, each contact on its consistent branch (docs/friction.md)")
     parser.add_argument("-o", "--output", metavar="OUT.nc",
                         help="archive path (default results/<packing stem>_analysis.nc)")
     parser.set_defaults(handler=command_analyse)

@@ -63,6 +63,14 @@ class PackingTangent:
         Stored forces (N, T) at the state, in units of k_n d.
     blocks : (c, 6, 6)
         Each contact's rho^2 (J^T D* J + Q* H) on (x_a, y_a, theta_a, x_b, y_b, theta_b).
+    jacobian : (c, 2, 6) or None
+        Each contact's J = d(l, beta)/du_e (for the branches of :mod:`ncstab.operators.friction_branches`).
+    law_tangent : (c, 2, 2) or None
+        Each contact's D* = dQ*/dq.
+    conjugates : (c, 2) or None
+        Each contact's Q* = (-N*, l T*).
+    lengths : (c,) or None
+        Each contact's l = |d|/rho.
     """
 
     R: np.ndarray
@@ -71,6 +79,10 @@ class PackingTangent:
     parameters: dict[str, Any]
     forces: np.ndarray
     blocks: np.ndarray
+    jacobian: np.ndarray | None = None
+    law_tangent: np.ndarray | None = None
+    conjugates: np.ndarray | None = None
+    lengths: np.ndarray | None = None
 
 
 def packing_contacts(packing: Packing, scale: np.ndarray | None = None) -> tuple[GrainContacts, int]:
@@ -195,7 +207,7 @@ def packing_tangent(packing: Packing, law: Any, gamma: float, u: np.ndarray | No
     keep = (rows < n) & (cols < n)
     K = sparse.csr_matrix((blocks.ravel()[keep], (rows[keep], cols[keep])), shape=(n, n))
     K.sum_duplicates()
-    return PackingTangent(R, K, contacts, params, f * rho[:, None], blocks)
+    return PackingTangent(R, K, contacts, params, f * rho[:, None], blocks, J, D, Q, q[:, 0])
 
 
 def second_order_work(K, directions: np.ndarray) -> np.ndarray:

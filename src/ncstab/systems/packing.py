@@ -15,6 +15,8 @@ variable                  dims       meaning
 ``tangential_force``      contact    optional (absent: 0), T: the force of a on b
                                      is ``N n - T t`` (n from a to b, t = n
                                      turned by +90 degrees)
+``friction``              () or      optional, the Coulomb ratio mu >= 0 (absent:
+                          contact    every contact sticks; docs/friction.md)
 ========================  =========  ============================================
 
 Each free grain i has three dofs, ``x<i>``, ``y<i>``, ``theta<i>``, in grain
@@ -51,6 +53,7 @@ ATTRIBUTES = {
                      "compression positive; the force of a on b is N n - T t, n from a to b"),
     "tangential_force": ("k_n mean grain diameter", "tangential contact force T",
                          "the force of a on b is N n - T t, t = n turned by +90 degrees"),
+    "friction": ("1", "Coulomb friction ratio mu", "a contact slides where |T| >= mu N (docs/friction.md)"),
 }
 
 
@@ -72,6 +75,8 @@ class Packing:
     held : (g, 3) bool or None
         Which of each grain's dofs (x, y, theta) are held; ``None``: those of the ``fixed``
         grains (a packing file holds whole grains; a study's grain list, single dofs).
+    friction : float, (c,) or None
+        The Coulomb ratio mu (one for all contacts, or per contact); ``None``: every contact sticks.
     """
 
     x: np.ndarray
@@ -83,6 +88,7 @@ class Packing:
     tangential_force: np.ndarray
     source: str = field(default="<memory>")
     held: np.ndarray | None = None
+    friction: np.ndarray | None = None
 
     @property
     def n_grains(self) -> int:
@@ -124,7 +130,7 @@ class Packing:
     def with_forces(self, normal: np.ndarray, tangential: np.ndarray) -> Packing:
         """The same packing with other contact forces."""
         return Packing(self.x, self.y, self.radius, self.fixed, self.contacts, np.asarray(normal, float),
-                       np.asarray(tangential, float), self.source, self.held)
+                       np.asarray(tangential, float), self.source, self.held, self.friction)
 
 
 def _first(mask: np.ndarray) -> int:
@@ -201,7 +207,25 @@ def validate(values: dict[str, np.ndarray], source: str = "<memory>") -> Packing
     return Packing(x, y, radius, fixed.astype(bool), contacts,
                    arrays["normal_force"].astype(float) if "normal_force" in arrays else zeros,
                    arrays["tangential_force"].astype(float) if "tangential_force" in arrays else zeros.copy(),
-                   source)
+                   source, friction=validate_friction(values.get("friction"), c, source))
+
+
+def validate_friction(value, contacts: int, source: str = "<memory>", name: str = "variable 'friction'"):
+    """mu as a float or a ``(c,)`` array (None: absent); :class:`PackingError` unless finite, >= 0, scalar or per contact."""
+    if value is None:
+        return None
+    array = np.asarray(value)
+    if array.ndim > 1 or (array.ndim == 1 and len(array) != contacts):
+        raise PackingError(f"{source}: {name} must be a scalar or have one entry per contact ({contacts}), "
+                           f"has shape {array.shape}")
+    if not np.issubdtype(array.dtype, np.number):
+        raise PackingError(f"{source}: {name} must be numeric, is {array.dtype}")
+    flat = np.atleast_1d(array.astype(float))
+    bad = ~np.isfinite(flat) | (flat < 0)
+    if bad.any():
+        i = _first(bad)
+        raise PackingError(f"{source}: {name}: entry {i} is {flat[i]:g} (a Coulomb ratio is a finite number >= 0)")
+    return float(array) if array.ndim == 0 else array.astype(float)
 
 
 def read_packing(path: str | Path) -> Packing:
@@ -214,7 +238,7 @@ def read_packing(path: str | Path) -> Packing:
     try:
         with netCDF4.Dataset(path) as handle:
             handle.set_auto_mask(False)
-            values = {name: np.asarray(handle.variables[name][...]) for name in (*REQUIRED, *OPTIONAL)
+            values = {name: np.asarray(handle.variables[name][...]) for name in (*REQUIRED, *OPTIONAL, "friction")
                       if name in handle.variables}
             dims = {name: handle.variables[name].dimensions for name in values}
     except OSError as error:
@@ -223,6 +247,8 @@ def read_packing(path: str | Path) -> Packing:
                            **{n: "contact" for n in ("grain_a", "grain_b", *OPTIONAL)}}.items():
         if name in dims and dims[name] != (expected,):
             raise PackingError(f"{path}: variable {name!r} has dimensions {dims[name]}, expected ({expected!r},)")
+    if "friction" in dims and dims["friction"] not in ((), ("contact",)):
+        raise PackingError(f"{path}: variable 'friction' has dimensions {dims['friction']}, expected () or ('contact',)")
     return validate(values, str(path))
 
 
@@ -237,6 +263,8 @@ def write_packing(packing: Packing, path: str | Path) -> Path:
         "grain_b": ("contact", packing.contacts[:, 1].astype(np.int32)),
         "normal_force": ("contact", packing.normal_force), "tangential_force": ("contact", packing.tangential_force),
     }
+    if packing.friction is not None:
+        values["friction"] = ((), packing.friction) if np.ndim(packing.friction) == 0 else ("contact", packing.friction)
     data = xr.Dataset({name: (dim, array, dict(zip(("units", "long_name", "description"), ATTRIBUTES[name])))
                        for name, (dim, array) in values.items()},
                       attrs={"title": "ncstab packing", "Conventions": "CF-1.8",
