@@ -17,7 +17,15 @@ variable                  dims       meaning
                                      turned by +90 degrees)
 ``friction``              () or      optional, the Coulomb ratio mu >= 0 (absent:
                           contact    every contact sticks; docs/friction.md)
+``z``                     grain      optional: a file with ``z`` is
+                                     three-dimensional (spheres)
+``tangential_force_x``,   contact    3-D only, optional (absent: 0): the global
+``_y``, ``_z``                       components of the tangential part of the
+                                     force of a on b (orthogonal to the branch)
 ========================  =========  ============================================
+
+A three-dimensional packing (:attr:`Packing.dimension` 3) has six dofs per free
+grain, analysed by :mod:`ncstab.operators.sphere_analysis`.
 
 Each free grain i has three dofs, ``x<i>``, ``y<i>``, ``theta<i>``, in grain
 order; the contacts' kinematics are :mod:`ncstab.elements.grain_contact`.
@@ -40,6 +48,8 @@ __all__ = ["Packing", "PackingError", "contacts_from_geometry", "read_packing", 
 
 REQUIRED = ("x", "y", "radius", "fixed", "grain_a", "grain_b")
 OPTIONAL = ("normal_force", "tangential_force")
+#: The optional variables of a three-dimensional packing (spheres).
+OPTIONAL_3D = ("z", "tangential_force_x", "tangential_force_y", "tangential_force_z")
 
 #: Attributes of the packing file's variables (units, long_name, description).
 ATTRIBUTES = {
@@ -54,6 +64,11 @@ ATTRIBUTES = {
     "tangential_force": ("k_n mean grain diameter", "tangential contact force T",
                          "the force of a on b is N n - T t, t = n turned by +90 degrees"),
     "friction": ("1", "Coulomb friction ratio mu", "a contact slides where |T| >= mu N (docs/friction.md)"),
+    "z": ("mean grain diameter", "grain centre z", "z of the sphere's centre (a file with z is three-dimensional)"),
+    **{f"tangential_force_{c}": ("k_n mean grain diameter", f"tangential contact force, {c} component",
+                                 "global component of the tangential part of the force of a on b (orthogonal to "
+                                 "the branch); the force of a on b is N n + (tangential_force_x, _y, _z)")
+       for c in "xyz"},
 }
 
 
@@ -77,6 +92,12 @@ class Packing:
         grains (a packing file holds whole grains; a study's grain list, single dofs).
     friction : float, (c,) or None
         The Coulomb ratio mu (one for all contacts, or per contact); ``None``: every contact sticks.
+        In 3-D ``(g, 6)`` (x, y, z, theta_x, theta_y, theta_z).
+    z : (g,) or None
+        Sphere centres' z: a three-dimensional packing; ``None``: disks (2-D).
+    tangential_force_vector : (c, 3) or None
+        3-D: the tangential part of the force of a on b, global components
+        (``tangential_force`` is then its norm, for display only).
     """
 
     x: np.ndarray
@@ -89,6 +110,13 @@ class Packing:
     source: str = field(default="<memory>")
     held: np.ndarray | None = None
     friction: np.ndarray | None = None
+    z: np.ndarray | None = None
+    tangential_force_vector: np.ndarray | None = None
+
+    @property
+    def dimension(self) -> int:
+        """3 for spheres (the packing has ``z``), else 2."""
+        return 2 if self.z is None else 3
 
     @property
     def n_grains(self) -> int:
@@ -129,8 +157,13 @@ class Packing:
 
     def with_forces(self, normal: np.ndarray, tangential: np.ndarray) -> Packing:
         """The same packing with other contact forces."""
+        tangential = np.asarray(tangential, float)
+        if self.z is not None:
+            vector = np.zeros((len(tangential), 3)) if tangential.ndim == 1 else tangential
+            return Packing(self.x, self.y, self.radius, self.fixed, self.contacts, np.asarray(normal, float),
+                           np.linalg.norm(vector, axis=1), self.source, self.held, self.friction, self.z, vector)
         return Packing(self.x, self.y, self.radius, self.fixed, self.contacts, np.asarray(normal, float),
-                       np.asarray(tangential, float), self.source, self.held, self.friction)
+                       tangential, self.source, self.held, self.friction)
 
 
 def _first(mask: np.ndarray) -> int:
@@ -145,7 +178,11 @@ def validate(values: dict[str, np.ndarray], source: str = "<memory>") -> Packing
     for name in REQUIRED:
         if name not in values:
             raise fail(f"variable {name!r} is missing (a packing needs {', '.join(REQUIRED)})")
-    arrays = {name: np.asarray(values[name]) for name in (*REQUIRED, *OPTIONAL) if name in values}
+    arrays = {name: np.asarray(values[name]) for name in (*REQUIRED, *OPTIONAL, *OPTIONAL_3D) if name in values}
+    if "z" not in arrays:
+        extra = [name for name in OPTIONAL_3D if name in arrays]
+        if extra:
+            raise fail(f"variable {extra[0]!r} is given without 'z' (only a three-dimensional packing has it)")
     for name, array in arrays.items():
         if array.ndim != 1:
             raise fail(f"variable {name!r} must be one-dimensional, has shape {array.shape}")
@@ -156,11 +193,11 @@ def validate(values: dict[str, np.ndarray], source: str = "<memory>") -> Packing
             i = _first(bad)
             raise fail(f"variable {name!r}: entry {i} is {array[i]} (not a finite number)")
     g = len(arrays["x"])
-    for name in ("y", "radius", "fixed"):
+    for name in ("y", "radius", "fixed", *(("z",) if "z" in arrays else ())):
         if len(arrays[name]) != g:
             raise fail(f"variable {name!r} has {len(arrays[name])} entries for {g} grains (dimension 'grain')")
     c = len(arrays["grain_a"])
-    for name in ("grain_b", *OPTIONAL):
+    for name in ("grain_b", *OPTIONAL, *OPTIONAL_3D[1:]):
         if name in arrays and len(arrays[name]) != c:
             raise fail(f"variable {name!r} has {len(arrays[name])} entries for {c} contacts (dimension 'contact')")
     if g == 0:
@@ -199,11 +236,16 @@ def validate(values: dict[str, np.ndarray], source: str = "<memory>") -> Packing
             raise fail(f"variable 'grain_b': entry {i} repeats the contact between grains {contacts[i, 0]} and "
                        f"{contacts[i, 1]}")
         distance = np.hypot(x[contacts[:, 1]] - x[contacts[:, 0]], y[contacts[:, 1]] - y[contacts[:, 0]])
+        if "z" in arrays:
+            z = arrays["z"].astype(float)
+            distance = np.hypot(distance, z[contacts[:, 1]] - z[contacts[:, 0]])
         if (distance == 0).any():
             i = _first(distance == 0)
             raise fail(f"variable 'x': contact {i} joins grains {contacts[i, 0]} and {contacts[i, 1]} at the same "
                        "centre (no branch direction)")
     zeros = np.zeros(c)
+    if "z" in arrays:
+        return _sphere_packing(arrays, x, y, radius, fixed.astype(bool), contacts, source)
     return Packing(x, y, radius, fixed.astype(bool), contacts,
                    arrays["normal_force"].astype(float) if "normal_force" in arrays else zeros,
                    arrays["tangential_force"].astype(float) if "tangential_force" in arrays else zeros.copy(),
@@ -228,6 +270,29 @@ def validate_friction(value, contacts: int, source: str = "<memory>", name: str 
     return float(array) if array.ndim == 0 else array.astype(float)
 
 
+def _sphere_packing(arrays, x, y, radius, fixed, contacts, source) -> Packing:
+    """The 3-D packing of validated arrays (its tangential force orthogonal to the branch: checked)."""
+    c = len(contacts)
+    z = arrays["z"].astype(float)
+    vector = np.column_stack([arrays[f"tangential_force_{k}"].astype(float) if f"tangential_force_{k}" in arrays
+                              else np.zeros(c) for k in "xyz"]) if c else np.zeros((0, 3))
+    if "tangential_force" in arrays:
+        raise PackingError(f"{source}: variable 'tangential_force' is two-dimensional; a packing with 'z' gives "
+                           "tangential_force_x, _y, _z")
+    branch = np.column_stack([x[contacts[:, 1]] - x[contacts[:, 0]], y[contacts[:, 1]] - y[contacts[:, 0]],
+                              z[contacts[:, 1]] - z[contacts[:, 0]]]) if c else np.zeros((0, 3))
+    normal = branch / np.linalg.norm(branch, axis=1, keepdims=True) if c else branch
+    along = np.abs(np.sum(vector * normal, axis=1))
+    bad = along > 1e-9 * (1 + np.linalg.norm(vector, axis=1))
+    if bad.any():
+        i = _first(bad)
+        raise PackingError(f"{source}: variable 'tangential_force_x': entry {i} (with _y, _z) has a component "
+                           f"{along[i]:g} along the branch (the tangential force is orthogonal to it)")
+    normal_force = arrays["normal_force"].astype(float) if "normal_force" in arrays else np.zeros(c)
+    return Packing(x, y, radius, fixed, contacts, normal_force, np.linalg.norm(vector, axis=1), source, None, None, z,
+                   vector)
+
+
 def read_packing(path: str | Path) -> Packing:
     """Read and validate a packing file (:class:`PackingError`: exit code 2)."""
     import netCDF4
@@ -238,13 +303,13 @@ def read_packing(path: str | Path) -> Packing:
     try:
         with netCDF4.Dataset(path) as handle:
             handle.set_auto_mask(False)
-            values = {name: np.asarray(handle.variables[name][...]) for name in (*REQUIRED, *OPTIONAL, "friction")
+            values = {name: np.asarray(handle.variables[name][...]) for name in (*REQUIRED, *OPTIONAL, *OPTIONAL_3D, "friction")
                       if name in handle.variables}
             dims = {name: handle.variables[name].dimensions for name in values}
     except OSError as error:
         raise PackingError(f"{path}: not a readable NetCDF packing file ({error})") from None
-    for name, expected in {**{n: "grain" for n in ("x", "y", "radius", "fixed")},
-                           **{n: "contact" for n in ("grain_a", "grain_b", *OPTIONAL)}}.items():
+    for name, expected in {**{n: "grain" for n in ("x", "y", "z", "radius", "fixed")},
+                           **{n: "contact" for n in ("grain_a", "grain_b", *OPTIONAL, *OPTIONAL_3D[1:])}}.items():
         if name in dims and dims[name] != (expected,):
             raise PackingError(f"{path}: variable {name!r} has dimensions {dims[name]}, expected ({expected!r},)")
     if "friction" in dims and dims["friction"] not in ((), ("contact",)):
@@ -265,6 +330,11 @@ def write_packing(packing: Packing, path: str | Path) -> Path:
     }
     if packing.friction is not None:
         values["friction"] = ((), packing.friction) if np.ndim(packing.friction) == 0 else ("contact", packing.friction)
+    if packing.z is not None:
+        del values["tangential_force"]
+        values["z"] = ("grain", packing.z)
+        vector = packing.tangential_force_vector
+        values.update({f"tangential_force_{k}": ("contact", vector[:, j]) for j, k in enumerate("xyz")})
     data = xr.Dataset({name: (dim, array, dict(zip(("units", "long_name", "description"), ATTRIBUTES[name])))
                        for name, (dim, array) in values.items()},
                       attrs={"title": "ncstab packing", "Conventions": "CF-1.8",
@@ -275,14 +345,16 @@ def write_packing(packing: Packing, path: str | Path) -> Path:
     return path
 
 
-def contacts_from_geometry(x: np.ndarray, y: np.ndarray, radius: np.ndarray, tolerance: float = 1e-9) -> np.ndarray:
-    """Pairs of grains whose disks touch or overlap (distance <= r_a + r_b + tolerance), ``(c, 2)``, a < b.
+def contacts_from_geometry(x: np.ndarray, y: np.ndarray, radius: np.ndarray, tolerance: float = 1e-9,
+                           z: np.ndarray | None = None) -> np.ndarray:
+    """Pairs of grains whose disks (spheres, with ``z``) touch or overlap (distance <= r_a + r_b + tolerance),
+    ``(c, 2)``, a < b.
 
     A k-d tree over the centres (not all pairs), searched to twice the largest radius.
     """
     from scipy.spatial import cKDTree
 
-    points = np.column_stack([x, y])
+    points = np.column_stack([x, y] if z is None else [x, y, z])
     pairs = cKDTree(points).query_pairs(2 * float(np.max(radius)) + tolerance, output_type="ndarray")
     if pairs.size == 0:
         return np.zeros((0, 2), dtype=np.intp)

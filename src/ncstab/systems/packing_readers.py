@@ -5,8 +5,17 @@ the packing file's units (docs/packings.md): lengths divided by the mean grain
 diameter d, forces by ``kn * d`` (``kn`` the DEM's normal stiffness, in the
 DEM's units: force per length).  From a contact force F that grain a exerts on
 grain b, with n the unit vector from a to b and t = n turned by +90 degrees:
-N = F . n and T = -F . t (:mod:`ncstab.elements.grain_contact`).  Only x and y
-are read (a 2D packing: z and the other columns are ignored).  Grains are held
+N = F . n and T = -F . t (:mod:`ncstab.elements.grain_contact`).
+
+*Dimension.*  A reader never drops a coordinate: data whose z varies (by more
+than 1e-9 of the largest radius) give a three-dimensional packing (spheres:
+x, y, z, radius, and the contact forces' three components, N = F . n and the
+tangential part F - N n); data without z, or with a constant z (a 2-D LAMMPS
+dump), give a two-dimensional one exactly as before.  ``dimension=2`` on
+three-dimensional data is refused (:class:`PackingError`, naming z) unless
+``plane_section=True`` asks explicitly for the plane section: the grains kept
+as disks at their x-y positions, with the x-y components of the forces.
+``dimension=3`` on data without z is refused.  Grains are held
 by ``fixed_types`` (a LAMMPS atom type, e.g. wall grains) and/or ``fixed_ids``.
 
 * :func:`read_lammps` -- a LAMMPS or LIGGGHTS ``dump`` of atoms
@@ -42,16 +51,16 @@ import numpy as np
 
 from ncstab.systems.packing import Packing, PackingError, contacts_from_geometry, validate
 
-__all__ = ["LAMMPS_PAIR_LOCAL", "LIGGGHTS_ID_FORCE", "packing_from_arrays", "read_csv", "read_dump",
+__all__ = ["LAMMPS_PAIR_LOCAL", "LIGGGHTS_ID_FORCE", "choose_z", "packing_from_arrays", "read_csv", "read_dump",
            "read_lammps", "read_yade"]
 
 #: ``compute pair/gran/local id force`` (LIGGGHTS): id1 id2 periodic-flag fx fy fz, force on id1.
-LIGGGHTS_ID_FORCE = {"id1": 0, "id2": 1, "fx": 3, "fy": 4}
+LIGGGHTS_ID_FORCE = {"id1": 0, "id2": 1, "fx": 3, "fy": 4, "fz": 5}
 #: ``dump local c_ids[1] c_ids[2] c_pair[1] ... c_pair[6]`` (LAMMPS property/local patom1 patom2 and
 #: pair/local fx fy fz p1 p2 p3): the force on id1 is (fx + p1, fy + p2).  For the granular pair
 #: styles LAMMPS's fx, fy, fz are the normal force only; p1, p2, p3 the tangential force
 #: (measured on a packing poured by LAMMPS itself: tests/test_lammps_packing.py).
-LAMMPS_PAIR_LOCAL = {"id1": 0, "id2": 1, "fx": 2, "fy": 3, "tx": 5, "ty": 6}
+LAMMPS_PAIR_LOCAL = {"id1": 0, "id2": 1, "fx": 2, "fy": 3, "fz": 4, "tx": 5, "ty": 6, "tz": 7}
 
 
 def read_dump(path: str | Path, item: str = "ATOMS", timestep: int | None = None) -> tuple[list[str], np.ndarray]:
@@ -134,7 +143,7 @@ def _column(names: list[str], table: np.ndarray, key: int | str, path: Path) -> 
 
 def packing_from_arrays(ids: np.ndarray, x: np.ndarray, y: np.ndarray, radius: np.ndarray, fixed: np.ndarray,
                         pairs: np.ndarray | None = None, force: np.ndarray | None = None, kn: float = 1.0,
-                        source: str = "<arrays>") -> Packing:
+                        source: str = "<arrays>", z: np.ndarray | None = None) -> Packing:
     """A packing from DEM arrays in the DEM's units.
 
     Parameters
@@ -145,23 +154,27 @@ def packing_from_arrays(ids: np.ndarray, x: np.ndarray, y: np.ndarray, radius: n
     pairs : (c, 2) or None
         Contacts by grain id (None: the overlapping pairs, with zero forces).
     force : (c, 2) or None
-        Force (fx, fy) that the first grain of each pair exerts on the second.
+        Force (fx, fy) that the first grain of each pair exerts on the second ((c, 3) with ``z``).
     kn
         The DEM's normal stiffness (force per length): forces are divided by kn d.
+    z : (g,) or None
+        The centres' z: a three-dimensional packing (see :func:`choose_z`); None: 2-D.
     """
+    dim = 2 if z is None else 3
     radius = np.asarray(radius, dtype=float)
     if len(radius) == 0:
         raise PackingError(f"{source}: no grains (a table with a header and no rows?)")
     ids = _integers(ids, source, "grain id")
     d = 2 * float(np.mean(radius))
     x, y = np.asarray(x, float) / d, np.asarray(y, float) / d
+    z = None if z is None else np.asarray(z, float) / d
     radius = radius / d
     order = np.argsort(ids, kind="stable")
     if len(ids) > 1 and np.any(ids[order][1:] == ids[order][:-1]):
         raise PackingError(f"{source}: grain id {ids[order][1:][ids[order][1:] == ids[order][:-1]][0]} appears twice")
     if pairs is None:
-        contacts = contacts_from_geometry(x, y, radius)
-        force = np.zeros((len(contacts), 2))
+        contacts = contacts_from_geometry(x, y, radius, z=z)
+        force = np.zeros((len(contacts), dim))
     else:
         pairs = _integers(pairs, source, "contact's grain id")
         position = np.searchsorted(ids[order], pairs.ravel())
@@ -171,9 +184,9 @@ def packing_from_arrays(ids: np.ndarray, x: np.ndarray, y: np.ndarray, radius: n
             k = int(np.flatnonzero(~known)[0])
             raise PackingError(f"{source}: contact {k // 2} names grain id {pairs.ravel()[k]}, which is not a grain")
         contacts = order[position].reshape(-1, 2)
-        force = np.zeros((len(contacts), 2)) if force is None else np.asarray(force, dtype=float)
+        force = np.zeros((len(contacts), dim)) if force is None else np.asarray(force, dtype=float)
     a, b = contacts[:, 0], contacts[:, 1]
-    branch = np.column_stack([x[b] - x[a], y[b] - y[a]])
+    branch = np.column_stack([x[b] - x[a], y[b] - y[a]] + ([] if z is None else [z[b] - z[a]]))
     length = np.linalg.norm(branch, axis=1)
     far = length > 1.5 * (radius[a] + radius[b])
     if far.any():
@@ -181,8 +194,14 @@ def packing_from_arrays(ids: np.ndarray, x: np.ndarray, y: np.ndarray, radius: n
         raise PackingError(f"{source}: contact {k} joins grains {ids[a[k]]} and {ids[b[k]]} whose centres are "
                            f"{length[k]:.3g} d apart (a periodic image? periodic packings are not supported)")
     n = branch / np.where(length > 0, length, 1.0)[:, None]
-    t = np.column_stack([-n[:, 1], n[:, 0]])
     scale = kn * d
+    if z is not None:
+        normal = np.sum(force * n, axis=1)
+        tangential = (force - normal[:, None] * n) / scale
+        return validate({"x": x, "y": y, "z": z, "radius": radius, "fixed": np.asarray(fixed, dtype=float),
+                         "grain_a": a, "grain_b": b, "normal_force": normal / scale,
+                         **{f"tangential_force_{k}": tangential[:, j] for j, k in enumerate("xyz")}}, source)
+    t = np.column_stack([-n[:, 1], n[:, 0]])
     return validate({"x": x, "y": y, "radius": radius, "fixed": np.asarray(fixed, dtype=float),
                      "grain_a": a, "grain_b": b, "normal_force": np.sum(force * n, axis=1) / scale,
                      "tangential_force": -np.sum(force * t, axis=1) / scale}, source)
@@ -198,6 +217,36 @@ def _integers(values, source: str, what: str) -> np.ndarray:
     return values.astype(np.int64)
 
 
+def choose_z(z: np.ndarray | None, radius: np.ndarray, dimension: int | None, plane_section: bool,
+             source: str) -> np.ndarray | None:
+    """The z to keep: ``z`` for three-dimensional data, None for 2-D (see the module docstring).
+
+    Raises
+    ------
+    PackingError
+        ``dimension=2`` on data whose z varies, without ``plane_section``; ``dimension=3`` without z;
+        a dimension other than 2, 3 or None.
+    """
+    if dimension not in (None, 2, 3):
+        raise PackingError(f"{source}: dimension must be 2 or 3, is {dimension!r}")
+    if plane_section:
+        if dimension == 3:
+            raise PackingError(f"{source}: plane_section=True gives a two-dimensional packing, not dimension=3")
+        return None
+    if z is None:
+        if dimension == 3:
+            raise PackingError(f"{source}: dimension=3, but the data have no z coordinate")
+        return None
+    z = np.asarray(z, dtype=float)
+    spread = float(np.ptp(z)) if len(z) else 0.0
+    varies = spread > 1e-9 * float(np.max(radius))
+    if dimension == 2 and varies:
+        raise PackingError(f"{source}: z varies by {spread:g} across the grains: they are spheres (a three-"
+                           "dimensional packing); read it in 3-D (dimension=3 or None), or ask for the plane "
+                           "section explicitly (plane_section=True: disks at their x-y positions)")
+    return z if (dimension == 3 or varies) else None
+
+
 def _fixed(ids: np.ndarray, types: np.ndarray | None, fixed_types: Sequence[int], fixed_ids: Sequence[int]):
     held = np.isin(ids, np.asarray(fixed_ids, dtype=np.int64))
     if types is not None and len(fixed_types):
@@ -207,7 +256,7 @@ def _fixed(ids: np.ndarray, types: np.ndarray | None, fixed_types: Sequence[int]
 
 def read_lammps(atoms: str | Path, pairs: str | Path | None = None, columns: Mapping[str, int | str] | None = None,
                 kn: float = 1.0, fixed_types: Sequence[int] = (), fixed_ids: Sequence[int] = (),
-                timestep: int | None = None) -> Packing:
+                timestep: int | None = None, dimension: int | None = None, plane_section: bool = False) -> Packing:
     """A packing from a LAMMPS/LIGGGHTS ``dump`` of atoms and an optional ``dump local`` of contacts.
 
     Parameters
@@ -227,6 +276,9 @@ def read_lammps(atoms: str | Path, pairs: str | Path | None = None, columns: Map
         Grains held.
     timestep
         The snapshot (default the last of each file).
+    dimension, plane_section
+        See :func:`choose_z`: a dump whose z varies is three-dimensional (then ``columns``
+        also gives fz, and tz with tx, ty).
     """
     atoms = Path(atoms)
     names, table = read_dump(atoms, "ATOMS", timestep)
@@ -236,23 +288,34 @@ def read_lammps(atoms: str | Path, pairs: str | Path | None = None, columns: Map
     types = _column(names, table, "type", atoms) if "type" in names else None
     held = _fixed(ids, types, fixed_types, fixed_ids)
     x, y = _column(names, table, "x", atoms), _column(names, table, "y", atoms)
+    z = choose_z(_column(names, table, "z", atoms) if "z" in names else None, radius, dimension, plane_section,
+                 str(atoms))
     if pairs is None:
-        return packing_from_arrays(ids, x, y, radius, held, kn=kn, source=str(atoms))
+        return packing_from_arrays(ids, x, y, radius, held, kn=kn, source=str(atoms), z=z)
     pairs = Path(pairs)
     local_names, local = read_dump(pairs, "ENTRIES", timestep)
     spec = dict(LIGGGHTS_ID_FORCE if columns is None else columns)
     i1, i2 = (_column(local_names, local, spec[k], pairs) for k in ("id1", "id2"))
-    on_first = np.column_stack([_column(local_names, local, spec[k], pairs) for k in ("fx", "fy")])
-    if "tx" in spec:  # a tangential part given apart (LAMMPS's granular pair/local: p1, p2)
-        on_first = on_first + np.column_stack([_column(local_names, local, spec[k], pairs) for k in ("tx", "ty")])
-    return packing_from_arrays(ids, x, y, radius, held, np.column_stack([i1, i2]), -on_first, kn, str(pairs))
+    axes = ("x", "y") if z is None else ("x", "y", "z")
+    missing = [f"f{a}" for a in axes if f"f{a}" not in spec] + \
+        ([f"t{a}" for a in axes if f"t{a}" not in spec] if "tx" in spec else [])
+    if missing:
+        raise PackingError(f"{pairs}: the packing is three-dimensional (z varies), and columns does not say where "
+                           f"{missing[0]!r} is")
+    on_first = np.column_stack([_column(local_names, local, spec[f"f{a}"], pairs) for a in axes])
+    if "tx" in spec:  # a tangential part given apart (LAMMPS's granular pair/local: p1, p2, p3)
+        on_first = on_first + np.column_stack([_column(local_names, local, spec[f"t{a}"], pairs) for a in axes])
+    return packing_from_arrays(ids, x, y, radius, held, np.column_stack([i1, i2]), -on_first, kn, str(pairs), z)
 
 
-def read_yade(path: str | Path, kn: float = 1.0) -> Packing:
+def read_yade(path: str | Path, kn: float = 1.0, dimension: int | None = None,
+              plane_section: bool = False) -> Packing:
     """A packing from the YADE text export of docs/packings.md.
 
-    Lines ``B id x y radius fixed`` (bodies) and ``I id1 id2 fx fy`` (interactions: F the
-    force of id1 on id2); ``#`` starts a comment.
+    Lines ``B id x y z radius fixed`` (bodies) and ``I id1 id2 fx fy fz`` (interactions: F the
+    force of id1 on id2); ``#`` starts a comment.  The 2-D export of earlier versions
+    (``B id x y radius fixed``, ``I id1 id2 fx fy``) is read too.  ``dimension``,
+    ``plane_section``: see :func:`choose_z`.
     """
     path = Path(path)
     lines = [line.split("#", 1)[0].split() for line in read_text(path).splitlines()]
@@ -262,18 +325,32 @@ def read_yade(path: str | Path, kn: float = 1.0) -> Packing:
     if unknown is not None:
         raise PackingError(f"{path}: line {unknown + 1} is neither a body (B) nor an interaction (I)")
     if not bodies:
-        raise PackingError(f"{path}: no body line ('B id x y radius fixed')")
+        raise PackingError(f"{path}: no body line ('B id x y z radius fixed')")
+    width = len(bodies[0])
     try:
-        body = np.array(bodies, dtype=float).reshape(len(bodies), 5)
-        inter = np.array(interactions, dtype=float).reshape(len(interactions), 4)
+        if width not in (5, 6):
+            raise ValueError
+        body = np.array(bodies, dtype=float).reshape(len(bodies), width)
+        inter = np.array(interactions, dtype=float).reshape(len(interactions), width - 1)
     except ValueError:
-        raise PackingError(f"{path}: body lines need 5 numbers and interaction lines 4") from None
-    return packing_from_arrays(body[:, 0], body[:, 1], body[:, 2], body[:, 3], body[:, 4], inter[:, :2],
-                               inter[:, 2:4], kn, str(path))
+        raise PackingError(f"{path}: body lines need 6 numbers (id x y z radius fixed) and interaction lines 5 "
+                           "(id1 id2 fx fy fz), or 5 and 4 without z, all alike") from None
+    spatial = width == 6
+    radius = body[:, 3 + spatial]
+    z = choose_z(body[:, 3] if spatial else None, radius, dimension, plane_section, str(path))
+    force = inter[:, 2:5] if z is not None else inter[:, 2:4]
+    return packing_from_arrays(body[:, 0], body[:, 1], body[:, 2], radius, body[:, 4 + spatial], inter[:, :2],
+                               force, kn, str(path), z)
 
 
-def read_csv(grains: str | Path, contacts: str | Path | None = None, kn: float = 1.0) -> Packing:
-    """A packing from CSV tables with a header line (see the module docstring)."""
+def read_csv(grains: str | Path, contacts: str | Path | None = None, kn: float = 1.0, dimension: int | None = None,
+             plane_section: bool = False) -> Packing:
+    """A packing from CSV tables with a header line (see the module docstring).
+
+    A grains table with a ``z`` column that varies is three-dimensional; its contacts table
+    then gives ``a,b,fx,fy,fz`` or ``a,b,normal_force,tangential_force_x,tangential_force_y,
+    tangential_force_z``.  ``dimension``, ``plane_section``: see :func:`choose_z`.
+    """
     grains = Path(grains)
     table = _read_table(grains)
     for name in ("x", "y", "radius"):
@@ -282,14 +359,18 @@ def read_csv(grains: str | Path, contacts: str | Path | None = None, kn: float =
     count = len(table["x"])
     ids = table.get("id", np.arange(count))
     fixed = table.get("fixed", np.zeros(count))
+    z = choose_z(table.get("z"), table["radius"], dimension, plane_section, str(grains))
     if contacts is None:
-        return packing_from_arrays(ids, table["x"], table["y"], table["radius"], fixed, kn=kn, source=str(grains))
+        return packing_from_arrays(ids, table["x"], table["y"], table["radius"], fixed, kn=kn, source=str(grains),
+                                   z=z)
     contacts = Path(contacts)
     pairs = _read_table(contacts)
     for name in ("a", "b"):
         if name not in pairs:
             raise PackingError(f"{contacts}: no column {name!r} (a contacts table needs a, b)")
     ab = np.column_stack([pairs["a"], pairs["b"]])
+    if z is not None:
+        return _csv_spheres(table, pairs, ids, fixed, z, ab, kn, str(contacts))
     if "fx" in pairs:
         force = np.column_stack([pairs["fx"], pairs.get("fy", np.zeros(len(ab)))])
         return packing_from_arrays(ids, table["x"], table["y"], table["radius"], fixed, ab, force, kn, str(contacts))
@@ -297,6 +378,22 @@ def read_csv(grains: str | Path, contacts: str | Path | None = None, kn: float =
     d = 2 * float(np.mean(table["radius"]))
     return packing.with_forces(pairs.get("normal_force", np.zeros(len(ab))) / (kn * d),
                                pairs.get("tangential_force", np.zeros(len(ab))) / (kn * d))
+
+
+def _csv_spheres(table, pairs, ids, fixed, z, ab, kn, source) -> Packing:
+    """The 3-D packing of CSV tables (forces fx, fy, fz of a on b, or N and the tangential components)."""
+    zeros = np.zeros(len(ab))
+    if "fx" in pairs:
+        force = np.column_stack([pairs["fx"], pairs.get("fy", zeros), pairs.get("fz", zeros)])
+        return packing_from_arrays(ids, table["x"], table["y"], table["radius"], fixed, ab, force, kn, source, z)
+    packing = packing_from_arrays(ids, table["x"], table["y"], table["radius"], fixed, ab, None, kn, source, z)
+    d = 2 * float(np.mean(table["radius"]))
+    vector = np.column_stack([pairs.get(f"tangential_force_{k}", zeros) for k in "xyz"]) / (kn * d)
+    values = {"x": packing.x, "y": packing.y, "z": packing.z, "radius": packing.radius,
+              "fixed": packing.fixed.astype(float), "grain_a": packing.contacts[:, 0],
+              "grain_b": packing.contacts[:, 1], "normal_force": pairs.get("normal_force", zeros) / (kn * d),
+              **{f"tangential_force_{k}": vector[:, j] for j, k in enumerate("xyz")}}
+    return validate(values, source)
 
 
 def _read_table(path: Path) -> dict[str, np.ndarray]:
