@@ -86,6 +86,7 @@ def analyse(packing: Any, law: str | Any = "mcnamara", gamma: float = 1.0, modes
 
     import numpy as np
 
+    from ncstab.operators.analysis_size import check_analysis_size
     from ncstab.operators.packing_analysis import analyse_packing
     from ncstab.operators.packing_directions import cone_planes as cone_planes_of
     from ncstab.operators.packing_directions import directions_from, resolve_planes
@@ -98,6 +99,7 @@ def analyse(packing: Any, law: str | Any = "mcnamara", gamma: float = 1.0, modes
         raise InvalidInputError(f"--modes: {modes!r} is negative")
     definition = _law(law) if isinstance(law, str) else law
     value = packing if isinstance(packing, Packing) else read_packing(packing)
+    check_analysis_size(value, int(modes))  # before any factorization: refuse what cannot fit
     given = None if directions is None else directions_from(directions, value)
     planes = resolve_planes([cone_planes] if isinstance(cone_planes, str) else cone_planes or (), given)
     result = analyse_packing(value, definition, float(gamma), max(int(modes), 2))  # the cone's plane: 2 modes
