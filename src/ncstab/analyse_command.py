@@ -96,6 +96,7 @@ def analyse(packing: Any, law: str | Any = "mcnamara", gamma: float = 1.0, modes
 
     import numpy as np
 
+    from ncstab.operators.analysis_size import check_analysis_size
     from ncstab.operators.packing_analysis import analyse_packing
     from ncstab.operators.packing_directions import cone_planes as cone_planes_of
     from ncstab.operators.packing_directions import directions_from, resolve_planes
@@ -111,6 +112,7 @@ def analyse(packing: Any, law: str | Any = "mcnamara", gamma: float = 1.0, modes
     original = packing if isinstance(packing, Packing) else read_packing(packing)
     rattler = rattler_mask(original)
     value = original if keep_rattlers or not rattler.any() else without_rattlers(original, rattler)
+    check_analysis_size(original, int(modes))  # before any factorization: refuse what cannot fit
     given = None if directions is None else directions_from(directions, value)
     from ncstab.operators.friction_variables import friction_variables, parse_probe
     from ncstab.systems.packing import validate_friction

@@ -302,12 +302,17 @@ def read_packing(path: str | Path) -> Packing:
         raise PackingError(f"no such packing file: {path}")
     try:
         with netCDF4.Dataset(path) as handle:
-            handle.set_auto_mask(False)
-            values = {name: np.asarray(handle.variables[name][...]) for name in (*REQUIRED, *OPTIONAL, *OPTIONAL_3D, "friction")
-                      if name in handle.variables}
+            handle.set_auto_mask(True)  # a fill (never written) or out-of-valid-range value is masked
+            read = {name: handle.variables[name][...] for name in (*REQUIRED, *OPTIONAL, *OPTIONAL_3D, "friction")
+                    if name in handle.variables}
+            values = {name: np.asarray(np.ma.getdata(array)) for name, array in read.items()}
             dims = {name: handle.variables[name].dimensions for name in values}
     except OSError as error:
         raise PackingError(f"{path}: not a readable NetCDF packing file ({error})") from None
+    masked = next((name for name, array in read.items() if np.ma.is_masked(array)), None)
+    if masked is not None:
+        entry = _first(np.ma.getmaskarray(read[masked]).ravel())
+        raise PackingError(f"{path}: variable {masked!r}, entry {entry}: a missing (fill) value, never written")
     for name, expected in {**{n: "grain" for n in ("x", "y", "z", "radius", "fixed")},
                            **{n: "contact" for n in ("grain_a", "grain_b", *OPTIONAL, *OPTIONAL_3D[1:])}}.items():
         if name in dims and dims[name] != (expected,):
