@@ -24,6 +24,13 @@ boundary curve:
   - ``flutter_onset``: a pair ``s = +- i omega`` of ``M s^2 + C s + K``, with the
     unknowns ``e = (omega, Re v, Im v)`` and the equations
     ``(K - omega^2 M + i omega C) v = 0`` (2n real) and ``c^H v = 1`` (2 real).
+    Without damping (C = 0 at both ends of the range) this condition is
+    degenerate: flutter is then a coalescence of two pairs ``s = +- i omega``, a
+    double root ``mu = omega^2`` of ``det(K - mu M)`` with a Jordan chain, and
+    the unknowns ``e = (omega, v, w)`` (v, w real) solve the defining system of
+    a double eigenvalue (Govaerts 2000, ch. 4; Seyranian & Mailybaev 2003)
+    ``(K - omega^2 M) v = 0``, ``(K - omega^2 M) w = M v`` (2n) and
+    ``c^T v = 1``, ``c^T w = 0`` (2).
 
 R, K, M and C come from the system's compiled evaluators
 (:func:`ncstab.paths.api.case_batch`), for a batch of points at once.
@@ -172,6 +179,10 @@ class BoundaryProblem:
         ``(b, c)``, the bordering vectors of ``sigma`` (updated between points).
     normal
         ``c`` of the flutter normalisation ``c^H v = 1`` (complex, ``(n,)``).
+    stop
+        The other end of the parameter's range (where C is checked to vanish too).
+    coalescence
+        Flutter without damping: the double-eigenvalue system (module docstring).
     """
 
     model: Model
@@ -182,6 +193,8 @@ class BoundaryProblem:
     event: str
     borders: tuple[np.ndarray, np.ndarray] | None = None
     normal: np.ndarray | None = None
+    coalescence: bool = False
+    stop: float | None = None
     n: int = field(init=False)
 
     def __post_init__(self) -> None:
@@ -265,9 +278,22 @@ class BoundaryProblem:
         return np.linalg.solve(bordered, rhs[..., None])[:, n, 0]
 
     def _flutter(self, X: np.ndarray, K: np.ndarray, M: np.ndarray, C: np.ndarray | None) -> np.ndarray:
-        """Re, Im of ``(K - omega^2 M + i omega C) v`` and of ``c^H v - 1`` ``(B, 2n + 2)``."""
+        """Re, Im of ``(K - omega^2 M + i omega C) v`` and of ``c^H v - 1`` ``(B, 2n + 2)``.
+
+        With :attr:`coalescence`, ``(K - omega^2 M) v``, ``(K - omega^2 M) w - M v``,
+        ``c^T v - 1`` and ``c^T w`` (v, w real: the slots of Re v and Im v).
+        """
         n = self.n
         omega = X[:, 2 + n]
+        if self.coalescence:
+            v, w = X[:, 3 + n : 3 + 2 * n], X[:, 3 + 2 * n : 3 + 3 * n]
+            pencil = K - omega[:, None, None] ** 2 * M
+            c = self.normal.real
+            return np.concatenate([
+                np.einsum("bij,bj->bi", pencil, v),
+                np.einsum("bij,bj->bi", pencil, w) - np.einsum("bij,bj->bi", M, v),
+                (v @ c - 1.0)[:, None], (w @ c)[:, None],
+            ], axis=1)
         v = X[:, 3 + n : 3 + 2 * n] + 1j * X[:, 3 + 2 * n : 3 + 3 * n]
         C = np.zeros_like(K) if C is None else C
         pencil = K - omega[:, None, None] ** 2 * M + 1j * omega[:, None, None] * C
@@ -279,7 +305,10 @@ class BoundaryProblem:
         """New borders (the null vectors of the singular matrix) or flutter normal at an accepted point."""
         if self.event == "flutter_onset":
             n = self.n
-            v = X[3 + n : 3 + 2 * n] + 1j * X[3 + 2 * n : 3 + 3 * n]
+            if self.coalescence:  # v alone: w is the Jordan vector
+                v = X[3 + n : 3 + 2 * n].astype(complex)
+            else:
+                v = X[3 + n : 3 + 2 * n] + 1j * X[3 + 2 * n : 3 + 3 * n]
             self.normal = v / np.vdot(v, v).real
             return
         if self.event in ("limit_point", "divergence", "bifurcation"):

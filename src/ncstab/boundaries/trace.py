@@ -26,6 +26,7 @@ from ncstab.boundaries.conditions import (
     BoundaryProblem,
     stage_controls,
 )
+from ncstab.boundaries.coalescence import coalescing_pair, is_undamped
 from ncstab.boundaries.continuation import ContinuationOptions, CurvePoint, trace_curve
 from ncstab.paths.api import case_batch, follow, resolve_model
 from ncstab.paths.programme import LoadingProgramme, parse_programme
@@ -135,6 +136,13 @@ def _start_point(model, law, programme, values, event, problem: BoundaryProblem)
     if event == "flutter_onset":
         evaluation, _ = problem.evaluate(X[None, :])
         K, M = evaluation.stiffness[0], evaluation.mass[0]
+        if _undamped_range(problem, X, evaluation):
+            problem.coalescence = True
+            omega, v, w = coalescing_pair(K, M)
+            problem.normal = v.astype(complex)
+            X[2 + n], X[3 + n : 3 + 2 * n], X[3 + 2 * n :] = omega, v, w
+            problem.update(X)
+            return X
         C = evaluation.damping[0] if evaluation.damping is not None else np.zeros_like(K)
         companion = np.block([[np.zeros((n, n)), np.eye(n)], [-np.linalg.solve(M, K), -np.linalg.solve(M, C)]])
         roots, vectors = np.linalg.eig(companion)
@@ -149,12 +157,23 @@ def _start_point(model, law, programme, values, event, problem: BoundaryProblem)
     return X
 
 
+def _undamped_range(problem: BoundaryProblem, X: np.ndarray, evaluation) -> bool:
+    """Whether C vanishes at the start point and with the parameter at the other end of its range."""
+    if not is_undamped(evaluation.damping):
+        return False
+    if problem.stop is None:
+        return True
+    other = X.copy()
+    other[0] = problem.stop
+    return is_undamped(problem.evaluate(other[None, :])[0].damping)
+
+
 def trace_case(model, law, programme: LoadingProgramme, values: Mapping[str, float], event: str, parameter: str, start: float, stop: float, options: ContinuationOptions) -> tuple[BoundaryCurve, BoundaryProblem]:
     """The boundary curve of one case (``values``: every parameter as a float)."""
     definition = model.definition
     controls = stage_controls(programme, definition.dofs, definition.forces, definition.load_parameter)
     others = {k: v for k, v in values.items() if k != parameter}
-    problem = BoundaryProblem(model, law, parameter, others, controls, event)
+    problem = BoundaryProblem(model, law, parameter, others, controls, event, stop=stop)
     if not _total_form(model, law, values):
         return _shot(model, law, programme, values, event, parameter, start, stop, problem), problem
     first = start
