@@ -94,7 +94,7 @@ def analyse(packing: Any, law: str | Any = "mcnamara", gamma: float = 1.0, modes
     from ncstab.operators.packing_directions import directions_from, resolve_planes
     from ncstab.operators.rattlers import rattler_mask, without_rattlers
     from ncstab.studies.errors import InvalidInputError
-    from ncstab.systems.packing import Packing, read_packing
+    from ncstab.systems.packing import Packing, PackingError, read_packing
 
     if not np.isfinite(gamma) or gamma < 0:
         raise InvalidInputError(f"--gamma: {gamma!r} is not a non-negative number")
@@ -106,6 +106,9 @@ def analyse(packing: Any, law: str | Any = "mcnamara", gamma: float = 1.0, modes
     value = original if keep_rattlers or not rattler.any() else without_rattlers(original, rattler)
     given = None if directions is None else directions_from(directions, value)
     planes = resolve_planes([cone_planes] if isinstance(cone_planes, str) else cone_planes or (), given)
+    if value.n_dof == 0 and original.n_dof > 0:
+        raise PackingError(f"{original.source}: every free grain is a rattler (fewer than two force-carrying "
+                           "contacts, variable 'normal_force'): no dof left; --keep-rattlers keeps them")
     result = analyse_packing(value, definition, float(gamma), max(int(modes), 2))  # the cone's plane: 2 modes
     cones = cone_planes_of(result.tangent.K, result.modes[:2], planes)
     result = replace(result, mode_values=result.mode_values[:int(modes)], modes=result.modes[:int(modes)],
