@@ -142,3 +142,15 @@ def test_stress_of_a_triangular_lattice_under_uniform_compression() -> None:
     result = love_weber_stress(packing)
     assert np.allclose(result.stress, closed, rtol=0, atol=1e-14 * N)
     assert result.stress[0, 0] > 0 and result.stress[1, 1] > 0  # compression positive
+
+
+def test_a_packing_of_rattlers_only_is_exit_2_pointing_at_keep_rattlers(tmp_path, monkeypatch, capsys) -> None:
+    monkeypatch.chdir(tmp_path)
+    packing = Packing(np.array([0.0, 0.0]), np.array([0.0, 1.0]), np.full(2, 0.5), np.array([True, False]),
+                      np.array([[0, 1]]), np.array([0.01]), np.array([0.0]))
+    write_packing(packing, tmp_path / "p.nc")
+    assert main(["analyse", "p.nc", "--law", "mcnamara"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "every free grain is a rattler" in err and "--keep-rattlers" in err
+    assert not (tmp_path / "results").exists()
+    assert main(["analyse", "p.nc", "--law", "mcnamara", "--keep-rattlers"]) == 0

@@ -102,7 +102,7 @@ def analyse(packing: Any, law: str | Any = "mcnamara", gamma: float = 1.0, modes
     from ncstab.operators.packing_directions import directions_from, resolve_planes
     from ncstab.operators.rattlers import rattler_mask, without_rattlers
     from ncstab.studies.errors import InvalidInputError
-    from ncstab.systems.packing import Packing, read_packing
+    from ncstab.systems.packing import Packing, PackingError, read_packing
 
     if not np.isfinite(gamma) or gamma < 0:
         raise InvalidInputError(f"--gamma: {gamma!r} is not a non-negative number")
@@ -120,6 +120,9 @@ def analyse(packing: Any, law: str | Any = "mcnamara", gamma: float = 1.0, modes
     mu = value.friction if friction is None else validate_friction(friction, value.n_contacts, name="--friction")
     probed = None if probe is None else parse_probe(probe, value.dof_names())
     planes = resolve_planes([cone_planes] if isinstance(cone_planes, str) else cone_planes or (), given)
+    if value.n_dof == 0 and original.n_dof > 0:
+        raise PackingError(f"{original.source}: every free grain is a rattler (fewer than two force-carrying "
+                           "contacts, variable 'normal_force'): no dof left; --keep-rattlers keeps them")
     result = analyse_packing(value, definition, float(gamma), max(int(modes), 2))  # the cone's plane: 2 modes
     cones = cone_planes_of(result.tangent.K, result.modes[:2], planes)
     result = replace(result, mode_values=result.mode_values[:int(modes)], modes=result.modes[:int(modes)],
